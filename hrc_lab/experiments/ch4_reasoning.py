@@ -1,0 +1,209 @@
+"""Ch.4 reasoning-module protocols (Sec. 4.4.1 and 4.4.5): Table 4.1, Fig. 4.7, the practical scenarios and the
+GNNExplainer masks of Fig. 4.9. One Hydra job = one (experiment cell, method, seed); sweeps cover the rest.
+
+A trial is an episode of the package-to-order task; it succeeds only if every prediction of P_o and P_g at the
+start of each of its 2n picking and placing stages is right (Sec. 4.4.1).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from hrc_lab.env.package_to_order import (
+    Episode,
+    PackageToOrderSpec,
+    combinations,
+    configurations_of,
+    goal_configurations,
+    sample_episode,
+    stage_observations,
+)
+from hrc_lab.experiments.context import RunContext
+from hrc_lab.reasoning import REASONERS, build_reasoner
+from hrc_lab.reasoning.base import Reasoner
+
+# Data and scoring ------------------------------------------------------------------------------------------------
+
+
+def episodes_for(spec, configurations, rng, repeats: int = 1, case: int = 1, n_missing=0) -> list[Episode]:
+    """``repeats`` episodes of every configuration with fresh random positions; ``n_missing`` may be a callable
+    drawing the number of absent products per episode."""
+    draw = n_missing if callable(n_missing) else (lambda: n_missing)
+    return [
+        sample_episode(spec, configuration, rng, case=case, n_missing=draw())
+        for configuration in configurations
+        for _ in range(repeats)
+    ]
+
+
+def random_episodes(spec, n: int, rng, case: int = 1, n_missing=0) -> list[Episode]:
+    """``n`` episodes of goal configurations drawn uniformly from all of them."""
+    configurations = goal_configurations(spec)
+    chosen = rng.integers(len(configurations), size=n)
+    return episodes_for(spec, [configurations[i] for i in chosen], rng, case=case, n_missing=n_missing)
+
+
+def observations_of(episodes: list[Episode]) -> list:
+    return [obs for episode in episodes for obs in stage_observations(episode)]
+
+
+def evaluate(reasoner: Reasoner, episodes: list[Episode]) -> dict[str, float]:
+    """Trial success rate (all 2n stage predictions right) and per-stage accuracies of P_o and P_g."""
+    per_episode = [stage_observations(e) for e in episodes]
+    flat = [obs for stages in per_episode for obs in stages]
+    correct = reasoner.predict(flat) == reasoner.labels(flat)
+    bounds = np.cumsum([0] + [len(stages) for stages in per_episode])
+    trials = [correct[a:b].all() for a, b in zip(bounds[:-1], bounds[1:])]
+    return {
+        "sr": float(np.mean(trials)),
+        "acc_o": float(correct[:, 0].mean()),
+        "acc_g": float(correct[:, 1].mean()),
+        "n_trials": float(len(trials)),
+    }
+
+
+def measure_latency(reasoner: Reasoner, observations: list, n_single: int = 100) -> dict[str, float]:
+    """Milliseconds per decision on the CPU, graph construction included: one observation at a time (median)
+    and in one batch (total time / batch size)."""
+    singles = []
+    for obs in observations[:n_single]:
+        start = time.perf_counter()
+        reasoner.predict([obs])
+        singles.append(time.perf_counter() - start)
+    start = time.perf_counter()
+    reasoner.predict(observations)
+    batched = (time.perf_counter() - start) / len(observations)
+    return {"latency_ms_batch1": 1e3 * float(np.median(singles)), "latency_ms_batched": 1e3 * batched}
+
+
+def train(ctx: RunContext, spec: PackageToOrderSpec, episodes: list[Episode], prefix: str) -> tuple[Reasoner, float]:
+    reasoner = build_reasoner(ctx.cfg.raw.reasoning, spec, seed=ctx.seed)
+    start = time.perf_counter()
+    reasoner.fit(observations_of(episodes), ctx.trainer(prefix))
+    return reasoner, time.perf_counter() - start
+
+
+def demo_repeats(spec: PackageToOrderSpec, min_demos: int) -> int:
+    """Repeats of every goal configuration so that a full demo set has at least ``min_demos`` episodes."""
+    return max(1, math.ceil(min_demos / len(goal_configurations(spec))))
+
+
+def result_row(ctx: RunContext, **values) -> dict:
+    return {"method": ctx.cfg.raw.reasoning.name, "seed": ctx.seed, **values}
+
+
+# Table 4.1 -------------------------------------------------------------------------------------------------------
+
+
+def table_4_1(ctx: RunContext) -> dict[str, float]:
+    spec, protocol = ctx.cfg.env, ctx.cfg.protocol
+    episodes = episodes_for(spec, goal_configurations(spec), ctx.rng(0), demo_repeats(spec, protocol.min_demos))
+    order = ctx.rng(1).permutation(len(episodes))
+    test_index = set(np.array_split(order, protocol.n_folds)[ctx.seed % protocol.n_folds].tolist())
+    train_eps = [e for i, e in enumerate(episodes) if i not in test_index]
+    test_eps = [e for i, e in enumerate(episodes) if i in test_index]
+
+    reasoner, train_s = train(ctx, spec, train_eps, prefix="")
+    metrics = evaluate(reasoner, test_eps)
+    metrics |= measure_latency(reasoner, observations_of(test_eps))
+    metrics |= {"train_s": train_s, "n_train_demos": float(len(train_eps))}
+    ctx.tracker.log_table(pd.DataFrame([result_row(ctx, cell=spec.cell, **metrics)]), "table_4_1")
+    if hasattr(reasoner, "network"):
+        ctx.tracker.log_torch_model(reasoner.network, "model/reasoner.pt")
+    return metrics
+
+
+# Fig. 4.7 --------------------------------------------------------------------------------------------------------
+
+
+def fig_4_7(ctx: RunContext) -> dict[str, float]:
+    spec, protocol = ctx.cfg.env, ctx.cfg.protocol
+    selections = combinations(spec)
+    configurations = goal_configurations(spec)
+    metrics: dict[str, float] = {}
+    rows = []
+    for i, ratio in enumerate(tqdm(protocol.ratios, desc=f"fig 4.7 {spec.cell}", unit="ratio")):
+        rng = ctx.rng(10 + i)
+        # CASE 1: unseen goal configurations (selections never trained on)
+        k = max(1, round(ratio * len(selections)))
+        order = rng.permutation(len(selections))
+        seen = [configurations_of(spec, selections[j]) for j in order[:k]]
+        unseen = [configurations_of(spec, selections[j]) for j in order[k:]] or seen
+        reasoner, _ = train(ctx, spec, episodes_for(spec, sum(seen, []), rng), prefix=f"case1_lam{ratio}")
+        case1 = evaluate(reasoner, episodes_for(spec, sum(unseen, []), rng))
+        # CASE 2: unseen task structures from human intervention
+        k = max(1, round(ratio * len(configurations)))
+        trained = [configurations[j] for j in rng.permutation(len(configurations))[:k]]
+        reasoner, _ = train(ctx, spec, episodes_for(spec, trained, rng), prefix=f"case2_lam{ratio}")
+        case2 = evaluate(reasoner, random_episodes(spec, protocol.case2_tests, rng, case=2))
+        for case, result in (("case1", case1), ("case2", case2)):
+            metrics[f"{case}_sr_lam{ratio}"] = result["sr"]
+            rows.append(result_row(ctx, cell=spec.cell, case=case, ratio=ratio, **result))
+    ctx.tracker.log_table(pd.DataFrame(rows), "fig_4_7")
+    return metrics
+
+
+# Practical scenarios (4.4.5) -------------------------------------------------------------------------------------
+
+
+def practical(ctx: RunContext) -> dict[str, float]:
+    spec, protocol = ctx.cfg.env, ctx.cfg.protocol
+    if protocol.max_missing >= spec.n_objects:
+        raise ValueError(f"protocol.max_missing must be < env.n_objects={spec.n_objects}")
+    metrics: dict[str, float] = {}
+    rows = []
+    rng = ctx.rng(20)
+    draw_missing = lambda: int(rng.integers(1, protocol.max_missing + 1))  # noqa: E731
+
+    if REASONERS.load(ctx.cfg.raw.reasoning.name).handles_missing_products:
+        full = episodes_for(spec, goal_configurations(spec), rng, demo_repeats(spec, protocol.min_demos))
+        partial = random_episodes(spec, protocol.partial_demos, rng, n_missing=draw_missing)
+        tests = random_episodes(spec, protocol.missing_tests, rng, n_missing=draw_missing)
+        for label, demos in (("missing_without_partial", full), ("missing", full + partial)):
+            reasoner, _ = train(ctx, spec, demos, prefix=label)
+            result = evaluate(reasoner, tests)
+            metrics[f"{label}_sr"] = result["sr"]
+            rows.append(result_row(ctx, scenario=label, cell=spec.cell, case="case1", **result))
+
+    train_spec = dataclasses.replace(spec, n_selected=protocol.train_selected, n_slots=protocol.slots)
+    demos = episodes_for(train_spec, goal_configurations(train_spec), rng, demo_repeats(train_spec, protocol.min_demos))
+    reasoner, _ = train(ctx, train_spec, demos, prefix=f"order_size_{train_spec.cell}")
+    for n in tqdm(protocol.test_selected, desc="order sizes", unit="size"):
+        test_spec = dataclasses.replace(train_spec, n_selected=n)
+        for case in (1, 2):
+            result = evaluate(reasoner, random_episodes(test_spec, protocol.test_tests, rng, case=case))
+            metrics[f"order_size_{test_spec.cell}_case{case}_sr"] = result["sr"]
+            rows.append(result_row(ctx, scenario=f"order_size_from_{train_spec.cell}", cell=test_spec.cell,
+                                   case=f"case{case}", **result))  # fmt: skip
+    ctx.tracker.log_table(pd.DataFrame(rows), "practical")
+    return metrics
+
+
+# Fig. 4.9 --------------------------------------------------------------------------------------------------------
+
+
+def fig_4_9(ctx: RunContext) -> dict[str, float]:
+    from hrc_lab.reasoning.explain import explain_stage, plot_explanations
+
+    if ctx.cfg.raw.reasoning.name != "ours":
+        raise ValueError("protocol ch4_fig_4_9 explains the chain GraphSAGE encoder: run it with reasoning=ours")
+    spec, protocol = ctx.cfg.env, ctx.cfg.protocol
+    rng = ctx.rng(30)
+    demos = episodes_for(spec, goal_configurations(spec), rng, demo_repeats(spec, protocol.min_demos))
+    reasoner, _ = train(ctx, spec, demos, prefix="")
+    metrics: dict[str, float] = {}
+    for case in (1, 2):
+        observations = stage_observations(random_episodes(spec, 1, rng, case=case)[0])
+        chosen = {"picking": observations[0], "placing": observations[1]}
+        explanations = {stage: explain_stage(reasoner, obs, protocol.explainer_epochs) for stage, obs in chosen.items()}
+        figure = plot_explanations(explanations, title=f"Fig. 4.9 analogue, CASE {case}, {spec.cell}")
+        ctx.tracker.log_figure(figure, f"plots/fig_4_9_case{case}.png")
+        for stage, explanation in explanations.items():
+            for feature, value in explanation.feature_importance.items():
+                metrics[f"case{case}_{stage}_importance_{feature}"] = value
+    return metrics

@@ -1,0 +1,28 @@
+"""What a protocol receives from its Hydra job."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import lightning.pytorch as pl
+import numpy as np
+from hydra.utils import instantiate
+
+from hrc_lab.config import ValidatedConfig
+from hrc_lab.tracking import RunTracker
+
+
+@dataclass
+class RunContext:
+    """The validated config, the job's MLflow run and its seed."""
+
+    cfg: ValidatedConfig
+    tracker: RunTracker
+    seed: int
+
+    def rng(self, *stream: int) -> np.random.Generator:
+        """An independent, reproducible random stream per purpose (data, folds, test scenarios...)."""
+        return np.random.default_rng([self.seed, *stream])
+
+    def trainer(self, prefix: str = "") -> pl.Trainer:
+        """A Lightning Trainer from ``conf/trainer`` logging per-epoch metrics into this run under ``prefix``."""
+        return instantiate(self.cfg.raw.trainer, logger=self.tracker.lightning_logger(prefix), _convert_="all")

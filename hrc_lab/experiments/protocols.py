@@ -1,0 +1,81 @@
+"""Protocol schemas (light: no torch import): ``protocol.name`` in an experiment file selects what one Hydra job
+runs, and the rest of the ``protocol`` node is validated against the schema registered with it."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from hrc_lab.registry import Registry
+
+PROTOCOLS = Registry("protocol")
+
+
+@dataclass
+class Table41Protocol:
+    """Full demo set (every goal configuration, random positions), CASE 1; fold ``seed % n_folds`` of a k-fold
+    split over the demonstrations is the test set."""
+
+    min_demos: int = 200
+    n_folds: int = 5
+
+    def __post_init__(self) -> None:
+        if self.n_folds < 2:
+            raise ValueError(f"protocol.n_folds must be >= 2, got {self.n_folds}")
+        if self.min_demos < self.n_folds:
+            raise ValueError(f"protocol.min_demos must be >= protocol.n_folds={self.n_folds}, got {self.min_demos}")
+
+
+
+@dataclass
+class Fig47Protocol:
+    """Training ratio lambda over goal configurations. CASE 1: train on lambda x mCn selections with all their
+    permutations, each configuration once, and test on every unseen configuration (at lambda = 1 none is
+    unseen: every configuration is tested with new positions). CASE 2: train on lambda x mCn x n! configurations,
+    test on ``case2_tests`` human-intervention scenarios of random configurations."""
+
+    ratios: list[float] = field(default_factory=lambda: [0.2, 0.4, 0.6, 0.8, 1.0])
+    case2_tests: int = 300
+
+    def __post_init__(self) -> None:
+        bad = [r for r in self.ratios if not 0 < r <= 1]
+        if bad or not self.ratios:
+            raise ValueError(f"protocol.ratios must be non-empty values in (0, 1], got {self.ratios}")
+
+
+
+@dataclass
+class PracticalProtocol:
+    """Missing products: 3of5 full demo set, plus ``partial_demos`` demonstrations with 1-``max_missing``
+    products absent; ``missing_tests`` test scenarios with 1-``max_missing`` absent. Varying order size: train on
+    ``train_selected``-of-m with a box of ``slots`` slots, test ``test_tests`` trials per size in ``test_selected``
+    and per case."""
+
+    min_demos: int = 200
+    partial_demos: int = 50
+    max_missing: int = 2
+    missing_tests: int = 180
+    train_selected: int = 2
+    test_selected: list[int] = field(default_factory=lambda: [3, 4])
+    slots: int = 4
+    test_tests: int = 100
+
+    def __post_init__(self) -> None:
+        if self.max_missing < 1:
+            raise ValueError(f"protocol.max_missing must be >= 1, got {self.max_missing}")
+        if any(n > self.slots for n in [self.train_selected, *self.test_selected]):
+            raise ValueError(f"protocol.slots={self.slots} must hold every order size {self.test_selected}")
+
+
+
+@dataclass
+class Fig49Protocol:
+    """GNNExplainer masks of one picking and one placing graph per case, for a model trained on the full demo set."""
+
+    min_demos: int = 200
+    explainer_epochs: int = 200
+
+
+CH4 = "hrc_lab.experiments.ch4_reasoning"
+PROTOCOLS.register("ch4_table_4_1", Table41Protocol, f"{CH4}:table_4_1")
+PROTOCOLS.register("ch4_fig_4_7", Fig47Protocol, f"{CH4}:fig_4_7")
+PROTOCOLS.register("ch4_practical", PracticalProtocol, f"{CH4}:practical")
+PROTOCOLS.register("ch4_fig_4_9", Fig49Protocol, f"{CH4}:fig_4_9")

@@ -1,0 +1,87 @@
+"""The interface every reasoning method implements."""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+import lightning.pytorch as pl
+import numpy as np
+import torch
+from torch import nn
+from torch_geometric.data import Data
+from torch_geometric.loader import DataLoader
+
+from hrc_lab.env.package_to_order import PackageToOrderSpec, StageObservation
+from hrc_lab.reasoning.configs import TorchReasonerConfig
+
+
+class Reasoner(ABC):
+    """Learns the importance distribution P_o (m+1) and the stage/goal distribution P_g (n_slots+1) from the
+    observations at the start of each picking and placing stage (Sec. 4.2.1)."""
+
+    #: whether the method copes with products missing from the scene (a varying number of inputs, 4.4.5)
+    handles_missing_products = True
+
+    def __init__(self, spec: PackageToOrderSpec, cfg, seed: int = 0) -> None:
+        self.spec = spec
+        self.cfg = cfg
+        self.seed = seed
+
+    @property
+    def n_o(self) -> int:
+        return self.spec.n_objects + 1
+
+    @property
+    def n_g(self) -> int:
+        return self.spec.slots + 1
+
+    @abstractmethod
+    def fit(self, observations: list[StageObservation], trainer: pl.Trainer | None) -> None:
+        """Train on expert observations; learned torch methods use the given Lightning trainer."""
+
+    @abstractmethod
+    def predict(self, observations: list[StageObservation]) -> np.ndarray:
+        """(N, 2) predicted class indices of P_o and P_g."""
+
+    @abstractmethod
+    def labels(self, observations: list[StageObservation]) -> np.ndarray:
+        """(N, 2) the ground-truth class indices this method is trained and scored on."""
+
+
+class TorchReasoner(Reasoner):
+    """A reasoning network trained by Lightning on encoded observations (PyG ``Data`` samples).
+
+    The network's ``forward(batch, teacher_forcing)`` returns the logits of P_o and P_g.
+    """
+
+    network: nn.Module
+
+    def __init__(self, spec: PackageToOrderSpec, cfg: TorchReasonerConfig, seed: int = 0) -> None:
+        super().__init__(spec, cfg, seed)
+        self.network = self.build_network()
+
+    @abstractmethod
+    def build_network(self) -> nn.Module: ...
+
+    @abstractmethod
+    def encode(self, obs: StageObservation) -> Data: ...
+
+    def fit(self, observations: list[StageObservation], trainer: pl.Trainer | None) -> None:
+        from hrc_lab.reasoning.module import ReasoningModule, StageDataModule
+
+        if trainer is None:
+            raise ValueError(f"{type(self).__name__} is trained by Lightning and needs a trainer")
+        data = StageDataModule([self.encode(o) for o in observations], self.cfg.batch_size, self.cfg.steps_per_epoch)
+        trainer.fit(ReasoningModule(self.network, lr=self.cfg.lr), datamodule=data)
+
+    @torch.no_grad()
+    def predict(self, observations: list[StageObservation], batch_size: int = 1024) -> np.ndarray:
+        self.network.eval()
+        loader = DataLoader([self.encode(o) for o in observations], batch_size=batch_size, shuffle=False)
+        predictions = []
+        for batch in loader:
+            logits_o, logits_g = self.network(batch, teacher_forcing=False)
+            predictions.append(torch.stack([logits_o.argmax(-1), logits_g.argmax(-1)], dim=1))
+        return torch.cat(predictions).numpy()
+
+    def labels(self, observations: list[StageObservation]) -> np.ndarray:
+        encoded = [self.encode(o) for o in observations]
+        return np.array([[int(d.o_label), int(d.g_label)] for d in encoded])

@@ -1,0 +1,52 @@
+"""``reasoning=ours``: the thesis' reasoning module (Sec. 4.2.1, Eq. 4.1-4.6, Fig. 4.3).
+
+A chain graph of the m products with node features (x, y, z, I) passes through three GraphSAGE layers,
+
+    h_N(i)^k = mean_{j in N(i)} h_j^{k-1}                                   (Eq. 4.1)
+    h_i^k    = ReLU(W_1 h_i^{k-1} + W_2 h_N(i)^k),  h_i^k <- h_i^k / ||h_i^k||_2   (Eq. 4.2)
+
+a mean readout G = mean_i h_i^K (Eq. 4.3) and a linear layer giving the m+1 logits of P_o. The stage classifier
+of :mod:`hrc_lab.reasoning.two_stage` maps [P_o, g_selected] to P_g; both are trained on L_re (Eq. 4.4-4.6).
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+from torch_geometric.data import Data
+from torch_geometric.nn import SAGEConv, global_mean_pool
+
+from hrc_lab.env.package_to_order import StageObservation
+from hrc_lab.reasoning.base import TorchReasoner
+from hrc_lab.reasoning.configs import ChainSAGEConfig
+from hrc_lab.reasoning.encoding import chain_graph
+from hrc_lab.reasoning.two_stage import StageClassifier, TwoStageNet
+
+
+class ChainSAGEEncoder(nn.Module):
+    """Three SAGEConv layers (mean aggregation, ReLU, L2-normalised embeddings), mean readout, m+1 logits."""
+
+    def __init__(self, in_channels: int, hidden: int, n_out: int, layers: int = 3) -> None:
+        super().__init__()
+        sizes = [in_channels] + [hidden] * layers
+        self.convs = nn.ModuleList(SAGEConv(a, b, aggr="mean", normalize=True) for a, b in zip(sizes, sizes[1:]))
+        self.head = nn.Linear(hidden, n_out)
+
+    def logits(self, x: torch.Tensor, edge_index: torch.Tensor, batch: torch.Tensor | None = None) -> torch.Tensor:
+        h = x
+        for conv in self.convs:
+            h = conv(h, edge_index).relu()
+        return self.head(global_mean_pool(h, batch))
+
+    def forward(self, batch) -> torch.Tensor:
+        return self.logits(batch.x, batch.edge_index, batch.batch)
+
+
+class ChainSAGEReasoner(TorchReasoner):
+    cfg: ChainSAGEConfig
+
+    def build_network(self) -> nn.Module:
+        encoder = ChainSAGEEncoder(4, self.cfg.hidden, self.n_o, self.cfg.layers)
+        return TwoStageNet(encoder, StageClassifier(self.n_o, self.n_g, self.cfg.classifier_hidden))
+
+    def encode(self, obs: StageObservation) -> Data:
+        return chain_graph(obs, self.spec, self.cfg.bidirectional)

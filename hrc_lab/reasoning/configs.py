@@ -1,0 +1,64 @@
+"""Config schemas of the reasoning methods (light: no torch import), and their registry."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hrc_lab.registry import Registry
+
+REASONERS = Registry("reasoning")
+
+
+@dataclass
+class TorchReasonerConfig:
+    lr: float = 1e-3
+    batch_size: int = 64
+    steps_per_epoch: int = 50  # an epoch is this many batches sampled with replacement
+
+    def __post_init__(self) -> None:
+        for key in ("lr", "batch_size", "steps_per_epoch"):
+            if getattr(self, key) <= 0:
+                raise ValueError(f"reasoning.{key} must be > 0, got {getattr(self, key)}")
+
+
+@dataclass
+class ChainSAGEConfig(TorchReasonerConfig):
+    hidden: int = 64
+    layers: int = 3
+    classifier_hidden: int = 64
+    bidirectional: bool = False  # the thesis links each node to the next one only
+
+
+@dataclass
+class ObjectGoalGNNConfig(TorchReasonerConfig):
+    hidden: int = 64
+    layers: int = 3
+    label_scheme: str = "order"  # "order": [74]'s labels (gnn); "task": the thesis' labels (gnn_task)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.label_scheme not in ("order", "task"):
+            raise ValueError(f"reasoning.label_scheme must be 'order' or 'task', got {self.label_scheme!r}")
+
+
+@dataclass
+class FlatMLPConfig(TorchReasonerConfig):
+    hidden: int = 64
+    layers: int = 3
+    classifier_hidden: int = 64
+
+
+@dataclass
+class RandomForestConfig:
+    n_estimators: int = 100
+    max_depth: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.n_estimators < 1:
+            raise ValueError(f"reasoning.n_estimators must be >= 1, got {self.n_estimators}")
+
+
+REASONERS.register("ours", ChainSAGEConfig, "hrc_lab.reasoning.chain_sage:ChainSAGEReasoner")
+REASONERS.register("gnn", ObjectGoalGNNConfig, "hrc_lab.reasoning.object_goal_gnn:ObjectGoalGNNReasoner")
+REASONERS.register("gnn_task", ObjectGoalGNNConfig, "hrc_lab.reasoning.object_goal_gnn:ObjectGoalGNNReasoner")
+REASONERS.register("mlp", FlatMLPConfig, "hrc_lab.reasoning.flat_mlp:FlatMLPReasoner")
+REASONERS.register("rf", RandomForestConfig, "hrc_lab.reasoning.random_forest:RandomForestReasoner")

@@ -1,0 +1,104 @@
+"""Observation encodings of the reasoning methods: the chain graph of Sec. 4.2.1, the object-goal graph of the GNN
+of [74] (Sec. 4.4.1) and the flat vector of the MLP and RF baselines.
+
+Positions enter every encoding relative to the centre of the table top and in decimetres (x10), so that features
+are O(1). Every encoding also carries ``goals`` (m+1, 3): row 0 is the goal of the product in the gripper (used
+when P_o points at the packaging area), row 1+i the goal of product i (zeros if unselected). The two-stage models
+read the selected goal g_selected = goals[argmax P_o] from it (teacher-forced with the label in training).
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch_geometric.data import Data
+
+from hrc_lab.env.package_to_order import PackageToOrderSpec, StageObservation
+
+POSITION_SCALE = 10.0
+
+
+def scaled(positions: np.ndarray, spec: PackageToOrderSpec) -> np.ndarray:
+    return (positions - np.array([0.0, 0.0, spec.table_z])) * POSITION_SCALE
+
+
+def goal_table(obs: StageObservation, spec: PackageToOrderSpec) -> np.ndarray:
+    """(m+1, 3) scaled goal positions indexed like P_o (see module docstring)."""
+    m = spec.n_objects
+    goals = np.zeros((m + 1, 3))
+    goals[0] = obs.goal_of(obs.held)
+    for product in range(m):
+        goals[1 + product] = obs.goal_of(product)
+    nonzero = np.any(goals != 0, axis=1)
+    goals[nonzero] = scaled(goals[nonzero], spec)
+    return goals
+
+
+def task_labels(obs: StageObservation) -> tuple[int, int]:
+    """Position-specified labels of the thesis: P_o with the packaging area at placing, P_g with the goal slot."""
+    return obs.o_label, obs.g_label
+
+
+def order_labels(obs: StageObservation) -> tuple[int, int]:
+    """Labels of the GNN of [74]: the handled product at both stages and the goal's rank in the packing order."""
+    return 1 + obs.target, 1 + obs.order
+
+
+def _common(obs: StageObservation, spec: PackageToOrderSpec, labels: tuple[int, int]) -> dict:
+    return dict(
+        o_label=torch.tensor([labels[0]]),
+        g_label=torch.tensor([labels[1]]),
+        goals=torch.tensor(goal_table(obs, spec), dtype=torch.float32).unsqueeze(0),
+    )
+
+
+def chain_graph(obs: StageObservation, spec: PackageToOrderSpec, bidirectional: bool = False) -> Data:
+    """Sec. 4.2.1: one node per present product in product order with features (x, y, z, I); directed edges link
+    each node to the next one (both ways with ``bidirectional``). Absent products (4.4.5) simply have no node."""
+    present = np.flatnonzero(obs.present)
+    x = np.column_stack([scaled(obs.positions[present], spec), obs.selected[present]])
+    src = np.arange(len(present) - 1)
+    edges = [np.stack([src, src + 1])]
+    if bidirectional:
+        edges.append(np.stack([src + 1, src]))
+    edge_index = torch.tensor(np.concatenate(edges, axis=1), dtype=torch.long)
+    return Data(
+        x=torch.tensor(x, dtype=torch.float32),
+        edge_index=edge_index,
+        product=torch.tensor(present),
+        **_common(obs, spec, task_labels(obs)),
+    )
+
+
+def object_goal_graph(obs: StageObservation, spec: PackageToOrderSpec, label_scheme: str) -> Data:
+    """The graph of [74] as described in 4.4.1: fully connected object and goal nodes with features
+    (x, y, z, is_goal, type one-hot over the m products, fulfilled, I). A goal node exists for every selected
+    product, at its assigned slot, and carries that product's type; "fulfilled" marks a packed product / filled goal."""
+    m = spec.n_objects
+    rows = []
+    for product in np.flatnonzero(obs.present):
+        kind = np.eye(m)[product]
+        rows.append([*scaled(obs.positions[product], spec), 0.0, *kind, obs.packed[product], obs.selected[product]])
+    for product in np.flatnonzero(obs.selected):
+        kind = np.eye(m)[product]
+        goal = scaled(obs.goal_of(product), spec)
+        rows.append([*goal, 1.0, *kind, obs.packed[product], 1.0])
+    n = len(rows)
+    src, dst = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    off_diagonal = src != dst
+    edge_index = torch.tensor(np.stack([src[off_diagonal], dst[off_diagonal]]), dtype=torch.long)
+    labels = order_labels(obs) if label_scheme == "order" else task_labels(obs)
+    return Data(x=torch.tensor(rows, dtype=torch.float32), edge_index=edge_index, **_common(obs, spec, labels))
+
+
+def flat_vector(obs: StageObservation, spec: PackageToOrderSpec) -> np.ndarray:
+    """(4m,) the chain graph's node features side by side. Needs every product present: a flat input has a fixed
+    size, which is why the thesis runs the missing-products scenario with graph methods only."""
+    if not obs.present.all():
+        raise ValueError("flat observations need every product present (missing products change the input size)")
+    return np.column_stack([scaled(obs.positions, spec), obs.selected]).reshape(-1)
+
+
+def flat_data(obs: StageObservation, spec: PackageToOrderSpec) -> Data:
+    """The flat vector wrapped as a one-row graph-level sample, so every torch method shares one data loader."""
+    x_flat = torch.tensor(flat_vector(obs, spec), dtype=torch.float32).unsqueeze(0)
+    return Data(x_flat=x_flat, num_nodes=1, **_common(obs, spec, task_labels(obs)))

@@ -1,0 +1,46 @@
+"""Hydra callback of the experiment sweeps: validate once and set up the MLflow store before the jobs start,
+then print the table of the sweep's runs beside the thesis' values when they are done."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig
+
+from hrc_lab.config import ConfigError, validate_config
+
+
+class SweepSummary(Callback):
+    def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
+        try:
+            validated = validate_config(config)
+        except ConfigError as err:
+            print(f"hrc-lab: config error: {err}", file=sys.stderr)
+            sys.exit(2)
+        from mlflow.tracking import MlflowClient
+
+        from hrc_lab.tracking import ensure_experiment, resolve_tracking_uri
+
+        # Create the store and the experiment here, once, so parallel jobs do not race to migrate the database.
+        client = MlflowClient(resolve_tracking_uri(validated.logger.tracking_uri))
+        ensure_experiment(client, config.name, validated.logger.artifact_root)
+
+    def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
+        from hrc_lab.report.build import build_section, write_section
+        from hrc_lab.tracking import LoggerConfig, RunTracker
+
+        sweep_dir = Path(config.hydra.sweep.dir)
+        uri = config.logger.tracking_uri
+        section = build_section(uri, config.name, config.table, sweep=sweep_dir.name)
+        if section is None:
+            print(f"hrc-lab: no finished runs in sweep {sweep_dir}", file=sys.stderr)
+            return
+        markdown = write_section(section, sweep_dir / "summary", uri, config.table)
+        (sweep_dir / "summary.md").write_text(markdown)
+        logger = LoggerConfig(tracking_uri=uri, artifact_root=config.logger.artifact_root)
+        tags = {"kind": "summary", "table": str(config.table), "sweep": sweep_dir.name, "chapter": str(config.chapter)}
+        with RunTracker(logger, config.name, f"{config.name}-summary-{sweep_dir.name}", tags) as tracker:
+            tracker.log_artifact(sweep_dir / "summary", "summary")
+            tracker.log_artifact(sweep_dir / "summary.md", "summary")
+        print(f"\n{markdown}\nSweep folder: {sweep_dir}  (rebuild the committed report with hrc-lab-report)")

@@ -1,0 +1,23 @@
+"""``hrc-lab-report <topic>``: write ``reports/<topic>.md`` and its plots from the MLflow runs of its tables."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from hrc_lab.report.build import build_topic
+from hrc_lab.report.sections import TOPICS
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="hrc-lab-report", description=__doc__)
+    parser.add_argument("topic", choices=sorted(TOPICS), help="which report to build")
+    parser.add_argument("--tracking-uri", default="sqlite:///runs/mlflow.db", help="MLflow tracking URI")
+    parser.add_argument("--out", type=Path, default=Path("reports"), help="folder for the markdown and PNGs")
+    args = parser.parse_args(argv)
+    path = build_topic(args.topic, args.tracking_uri, args.out)
+    print(path.read_text())
+    print(f"\nwrote {path}")
+
+
+if __name__ == "__main__":
+    main()

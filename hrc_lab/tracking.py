@@ -1,0 +1,131 @@
+"""MLflow bookkeeping: one MLflow run per Hydra job, with a readable name, tags, the resolved config, metrics,
+tables and plots. Talks to MLflow through ``MlflowClient`` (no global "active run"), so jobs of a joblib sweep
+never share state; the tracking URI is one config key (``logger.tracking_uri``), a local sqlite file by default.
+"""
+from __future__ import annotations
+
+import re
+import tempfile
+import time
+from pathlib import Path
+
+import pandas as pd
+from lightning.pytorch.loggers import MLFlowLogger
+from mlflow.entities import Metric, Param
+from mlflow.tracking import MlflowClient
+from omegaconf import DictConfig, OmegaConf
+
+from hrc_lab.config import LoggerConfig
+
+
+def resolve_tracking_uri(uri: str) -> str:
+    """Make a relative sqlite path absolute (jobs may run in other working directories) and create its folder."""
+    match = re.fullmatch(r"sqlite:///(.+)", uri)
+    if match and not Path(match.group(1)).is_absolute():
+        path = Path(match.group(1)).resolve()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return f"sqlite:///{path}"
+    return uri
+
+
+def ensure_experiment(client: MlflowClient, name: str, artifact_root: str) -> str:
+    """The id of the MLflow experiment ``name``, created with artifacts under ``artifact_root`` if new."""
+    experiment = client.get_experiment_by_name(name)
+    if experiment is not None:
+        return experiment.experiment_id
+    location = None
+    if "://" not in artifact_root or artifact_root.startswith("file:"):
+        folder = Path(artifact_root.removeprefix("file://")).resolve() / re.sub(r"[^\w.-]+", "_", name)
+        location = folder.as_uri()
+    try:
+        return client.create_experiment(name, artifact_location=location)
+    except Exception:  # another job of the sweep created it first
+        experiment = client.get_experiment_by_name(name)
+        if experiment is None:
+            raise
+        return experiment.experiment_id
+
+
+def flatten(node, prefix: str = "") -> dict[str, str]:
+    """Dotted keys of a resolved config, for MLflow params."""
+    out: dict[str, str] = {}
+    items = node.items() if isinstance(node, dict) else enumerate(node)
+    for key, value in items:
+        full = f"{prefix}{key}"
+        if isinstance(value, (dict, list)) and value:
+            out.update(flatten(value, full + "."))
+        else:
+            out[full] = str(value)
+    return out
+
+
+class RunTracker:
+    """One MLflow run; use as a context manager so a crash marks the run FAILED."""
+
+    def __init__(self, logger: LoggerConfig, experiment: str, run_name: str, tags: dict[str, str]) -> None:
+        self.tracking_uri = resolve_tracking_uri(logger.tracking_uri)
+        self.client = MlflowClient(self.tracking_uri)
+        self.experiment_id = ensure_experiment(self.client, experiment, logger.artifact_root)
+        self.run_name = run_name
+        self.tags = tags
+        self.run_id: str | None = None
+
+    def __enter__(self) -> "RunTracker":
+        run = self.client.create_run(self.experiment_id, run_name=self.run_name, tags=self.tags)
+        self.run_id = run.info.run_id
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.client.set_terminated(self.run_id, "FAILED" if exc_type else "FINISHED")
+
+    # logging -------------------------------------------------------------------------------------------------
+    def log_config(self, cfg: DictConfig) -> None:
+        resolved = OmegaConf.to_container(cfg, resolve=True)
+        params = [Param(k, v[:6000]) for k, v in flatten(resolved).items()]
+        for start in range(0, len(params), 100):
+            self.client.log_batch(self.run_id, params=params[start : start + 100])
+        self.log_text(OmegaConf.to_yaml(cfg, resolve=True), "config/resolved.yaml")
+
+    def log_metrics(self, metrics: dict[str, float], step: int = 0) -> None:
+        now = int(time.time() * 1000)
+        batch = [Metric(k, float(v), now, step) for k, v in metrics.items()]
+        for start in range(0, len(batch), 500):
+            self.client.log_batch(self.run_id, metrics=batch[start : start + 500])
+
+    def log_text(self, text: str, artifact_file: str) -> None:
+        self.client.log_text(self.run_id, text, artifact_file)
+
+    def log_artifact(self, path: Path, artifact_path: str | None = None) -> None:
+        path = Path(path)
+        if path.is_dir():
+            self.client.log_artifacts(self.run_id, str(path), artifact_path)
+        elif path.exists():
+            self.client.log_artifact(self.run_id, str(path), artifact_path)
+
+    def log_table(self, table: pd.DataFrame, name: str) -> None:
+        """A result table as CSV and markdown artifacts under ``tables/``."""
+        self.log_text(table.to_csv(index=False), f"tables/{name}.csv")
+        self.log_text(table.to_markdown(index=False), f"tables/{name}.md")
+
+    def log_figure(self, figure, artifact_file: str) -> None:
+        self.client.log_figure(self.run_id, figure, artifact_file)
+
+    def log_torch_model(self, model, artifact_file: str) -> None:
+        import torch
+
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / Path(artifact_file).name
+            torch.save(model.state_dict(), path)
+            self.log_artifact(path, str(Path(artifact_file).parent))
+
+    def lightning_logger(self, prefix: str = ""):
+        """A Lightning MLFlowLogger writing per-epoch metrics into this run (keys ``<prefix>-train_loss``)."""
+        return SharedRunLogger(tracking_uri=self.tracking_uri, run_id=self.run_id, prefix=prefix)
+
+
+class SharedRunLogger(MLFlowLogger):
+    """An MLFlowLogger that leaves the run open when a fit ends: one job trains several models into one run,
+    and :class:`RunTracker` closes it."""
+
+    def finalize(self, status: str = "success") -> None:
+        pass
