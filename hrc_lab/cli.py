@@ -4,6 +4,7 @@ One Hydra job = one MLflow run named ``<experiment>-<method>-<cell>-seed<k>``. T
 anything heavy is imported, so a bad key fails within a second. Sweeps use Hydra's launchers
 (``hydra/launcher=joblib`` locally; submitit or Ray on a cluster).
 """
+
 from __future__ import annotations
 
 import logging

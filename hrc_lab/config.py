@@ -4,6 +4,7 @@ Hydra already refuses command-line overrides of keys that do not exist (struct m
 the YAML files and ``+key=`` additions may still get wrong: unknown keys, wrong types and impossible values in
 every group, naming the full key in the error (``env.n_selected``, ``reasoning.hiden``, ``trainer.max_epoch``).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -15,9 +16,21 @@ from omegaconf.errors import OmegaConfBaseException
 from hrc_lab.registry import ConfigError, Registry
 
 TOP_LEVEL_KEYS = {
-    "name", "chapter", "table", "seed", "num_threads", "protocol",
-    "env", "reasoning", "motion", "perception", "grasp", "trainer", "logger", "paths",
-}  # fmt: skip
+    "name",
+    "chapter",
+    "table",
+    "seed",
+    "num_threads",
+    "protocol",
+    "env",
+    "reasoning",
+    "motion",
+    "perception",
+    "grasp",
+    "trainer",
+    "logger",
+    "paths",
+}
 UNIMPLEMENTED_GROUPS = ("motion", "perception", "grasp")  # only their `none` option exists so far
 
 

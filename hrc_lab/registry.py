@@ -5,6 +5,7 @@ against a dataclass schema, so a typo, a wrong type or an impossible value fails
 naming the full key (``reasoning.hiden``). Implementations are given as ``"module:attribute"`` strings and imported
 only by :meth:`Registry.load`: validating a config never imports torch, so it takes well under a second.
 """
+
 from __future__ import annotations
 
 import importlib

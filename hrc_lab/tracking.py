@@ -2,6 +2,7 @@
 tables and plots. Talks to MLflow through ``MlflowClient`` (no global "active run"), so jobs of a joblib sweep
 never share state; the tracking URI is one config key (``logger.tracking_uri``), a local sqlite file by default.
 """
+
 from __future__ import annotations
 
 import re
@@ -70,7 +71,7 @@ class RunTracker:
         self.tags = tags
         self.run_id: str | None = None
 
-    def __enter__(self) -> "RunTracker":
+    def __enter__(self) -> RunTracker:
         run = self.client.create_run(self.experiment_id, run_name=self.run_name, tags=self.tags)
         self.run_id = run.info.run_id
         return self

@@ -1,4 +1,5 @@
 """Environments and task specifications; ``conf/env/<file>.yaml`` selects one by ``name``."""
+
 from hrc_lab.env.package_to_order import PackageToOrderSpec
 from hrc_lab.registry import Registry
 

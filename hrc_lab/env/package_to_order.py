@@ -17,6 +17,7 @@ An :class:`Episode` is one trial: a configuration, sampled product positions and
 picking and placing stage, each carrying its ground truth (P_o and P_g as class indices).
 The robosuite environment builds its scenes from the same spec and sampler.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -38,7 +39,7 @@ class PackageToOrderSpec:
     n_slots: int | None = None  # goal slots in the box; None means n_selected (the thesis' setting)
     table_z: float = 0.8
     product_size: float = 0.04
-    pending_origin: tuple[float, float] = (-0.16, -0.30)  # nominal position of product 1
+    pending_origin: tuple[float, float] = (-0.16, -0.30)  # nominal x-y of product 1
     pending_spacing: float = 0.08  # along x between neighbouring products' cells
     pick_jitter: tuple[float, float] = (0.015, 0.075)  # +-x, +-y around a product's nominal position
     box_center: tuple[float, float] = (0.0, 0.30)
@@ -58,7 +59,9 @@ class PackageToOrderSpec:
         if self.slots < self.n_selected:
             raise ValueError(f"env.n_slots={self.n_slots} must be >= env.n_selected={self.n_selected}")
         if 2 * self.pick_jitter[0] + self.product_size >= self.pending_spacing:
-            raise ValueError("env.pick_jitter[0] lets neighbouring products overlap; reduce it or widen pending_spacing")
+            raise ValueError(
+                "env.pick_jitter[0] lets neighbouring products overlap; reduce it or widen env.pending_spacing"
+            )
 
     @property
     def slots(self) -> int:
@@ -135,10 +138,6 @@ class Episode:
         for product, s in self.configuration:
             slot[product] = s
         return slot
-
-    @property
-    def selected(self) -> np.ndarray:
-        return self.goal_slot >= 0
 
 
 def sample_episode(

@@ -4,6 +4,7 @@ GNNExplainer masks of Fig. 4.9. One Hydra job = one (experiment cell, method, se
 A trial is an episode of the package-to-order task; it succeeds only if every prediction of P_o and P_g at the
 start of each of its 2n picking and placing stages is right (Sec. 4.4.1).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -178,8 +179,15 @@ def practical(ctx: RunContext) -> dict[str, float]:
         for case in (1, 2):
             result = evaluate(reasoner, random_episodes(test_spec, protocol.test_tests, rng, case=case))
             metrics[f"order_size_{test_spec.cell}_case{case}_sr"] = result["sr"]
-            rows.append(result_row(ctx, scenario=f"order_size_from_{train_spec.cell}", cell=test_spec.cell,
-                                   case=f"case{case}", **result))  # fmt: skip
+            rows.append(
+                result_row(
+                    ctx,
+                    scenario=f"order_size_from_{train_spec.cell}",
+                    cell=test_spec.cell,
+                    case=f"case{case}",
+                    **result,
+                )
+            )
     ctx.tracker.log_table(pd.DataFrame(rows), "practical")
     return metrics
 

@@ -1,4 +1,5 @@
 """What a protocol receives from its Hydra job."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -1,5 +1,6 @@
 """Protocol schemas (light: no torch import): ``protocol.name`` in an experiment file selects what one Hydra job
 runs, and the rest of the ``protocol`` node is validated against the schema registered with it."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -24,7 +25,6 @@ class Table41Protocol:
             raise ValueError(f"protocol.min_demos must be >= protocol.n_folds={self.n_folds}, got {self.min_demos}")
 
 
-
 @dataclass
 class Fig47Protocol:
     """Training ratio lambda over goal configurations. CASE 1: train on lambda x mCn selections with all their
@@ -39,7 +39,6 @@ class Fig47Protocol:
         bad = [r for r in self.ratios if not 0 < r <= 1]
         if bad or not self.ratios:
             raise ValueError(f"protocol.ratios must be non-empty values in (0, 1], got {self.ratios}")
-
 
 
 @dataclass
@@ -63,7 +62,6 @@ class PracticalProtocol:
             raise ValueError(f"protocol.max_missing must be >= 1, got {self.max_missing}")
         if any(n > self.slots for n in [self.train_selected, *self.test_selected]):
             raise ValueError(f"protocol.slots={self.slots} must hold every order size {self.test_selected}")
-
 
 
 @dataclass

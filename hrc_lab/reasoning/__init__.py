@@ -1,4 +1,5 @@
 """Ch.4 reasoning module and its baselines; ``conf/reasoning/<name>.yaml`` selects one by ``name``."""
+
 from hrc_lab.reasoning.configs import REASONERS
 
 

@@ -1,7 +1,9 @@
 """The interface every reasoning method implements."""
+
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+
 import lightning.pytorch as pl
 import numpy as np
 import torch

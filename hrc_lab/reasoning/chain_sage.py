@@ -8,6 +8,7 @@ A chain graph of the m products with node features (x, y, z, I) passes through t
 a mean readout G = mean_i h_i^K (Eq. 4.3) and a linear layer giving the m+1 logits of P_o. The stage classifier
 of :mod:`hrc_lab.reasoning.two_stage` maps [P_o, g_selected] to P_g; both are trained on L_re (Eq. 4.4-4.6).
 """
+
 from __future__ import annotations
 
 import torch
@@ -22,20 +23,32 @@ from hrc_lab.reasoning.encoding import chain_graph
 from hrc_lab.reasoning.two_stage import StageClassifier, TwoStageNet
 
 
+class SAGEStack(nn.Module):
+    """``layers`` SAGEConv layers with mean aggregation, ReLU and L2-normalised embeddings (Eq. 4.1-4.2)."""
+
+    def __init__(self, in_channels: int, hidden: int, layers: int = 3) -> None:
+        super().__init__()
+        sizes = [in_channels] + [hidden] * layers
+        self.convs = nn.ModuleList(
+            SAGEConv(a, b, aggr="mean", normalize=True) for a, b in zip(sizes, sizes[1:], strict=False)
+        )
+
+    def forward(self, x: torch.Tensor, edge_index: torch.Tensor) -> torch.Tensor:
+        for conv in self.convs:
+            x = conv(x, edge_index).relu()
+        return x
+
+
 class ChainSAGEEncoder(nn.Module):
-    """Three SAGEConv layers (mean aggregation, ReLU, L2-normalised embeddings), mean readout, m+1 logits."""
+    """SAGEConv stack, mean readout (Eq. 4.3) and a linear layer giving the m+1 logits of P_o."""
 
     def __init__(self, in_channels: int, hidden: int, n_out: int, layers: int = 3) -> None:
         super().__init__()
-        sizes = [in_channels] + [hidden] * layers
-        self.convs = nn.ModuleList(SAGEConv(a, b, aggr="mean", normalize=True) for a, b in zip(sizes, sizes[1:]))
+        self.sage = SAGEStack(in_channels, hidden, layers)
         self.head = nn.Linear(hidden, n_out)
 
     def logits(self, x: torch.Tensor, edge_index: torch.Tensor, batch: torch.Tensor | None = None) -> torch.Tensor:
-        h = x
-        for conv in self.convs:
-            h = conv(h, edge_index).relu()
-        return self.head(global_mean_pool(h, batch))
+        return self.head(global_mean_pool(self.sage(x, edge_index), batch))
 
     def forward(self, batch) -> torch.Tensor:
         return self.logits(batch.x, batch.edge_index, batch.batch)

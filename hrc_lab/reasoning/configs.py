@@ -1,4 +1,5 @@
 """Config schemas of the reasoning methods (light: no torch import), and their registry."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -21,11 +22,20 @@ class TorchReasonerConfig:
 
 
 @dataclass
-class ChainSAGEConfig(TorchReasonerConfig):
+class TwoStageConfig(TorchReasonerConfig):
+    """An encoder giving P_o (``layers`` x ``hidden``) and the stage classifier giving P_g (ours, mlp)."""
+
     hidden: int = 64
     layers: int = 3
     classifier_hidden: int = 64
+
+
+@dataclass
+class ChainSAGEConfig(TwoStageConfig):
     bidirectional: bool = False  # the thesis links each node to the next one only
+
+
+FlatMLPConfig = TwoStageConfig
 
 
 @dataclass
@@ -38,13 +48,6 @@ class ObjectGoalGNNConfig(TorchReasonerConfig):
         super().__post_init__()
         if self.label_scheme not in ("order", "task"):
             raise ValueError(f"reasoning.label_scheme must be 'order' or 'task', got {self.label_scheme!r}")
-
-
-@dataclass
-class FlatMLPConfig(TorchReasonerConfig):
-    hidden: int = 64
-    layers: int = 3
-    classifier_hidden: int = 64
 
 
 @dataclass

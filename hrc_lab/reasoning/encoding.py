@@ -6,6 +6,7 @@ are O(1). Every encoding also carries ``goals`` (m+1, 3): row 0 is the goal of t
 when P_o points at the packaging area), row 1+i the goal of product i (zeros if unselected). The two-stage models
 read the selected goal g_selected = goals[argmax P_o] from it (teacher-forced with the label in training).
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -1,5 +1,6 @@
 """GNNExplainer (torch_geometric.explain) on the chain GraphSAGE encoder's P_o output: which node features and
 which edges the importance ranking relies on, as in Fig. 4.9."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -83,8 +84,12 @@ def plot_explanations(explanations: dict[str, StageExplanation], title: str):
             ax.text(x, 0, f"o{p + 1}", ha="center", va="center", zorder=4)
         weights = ex.edge_mask / ex.edge_mask.max() if ex.edge_mask.max() > 0 else ex.edge_mask
         for (src, dst), w in zip(ex.edge_index.T, weights):
-            ax.annotate("", xy=(dst, 0), xytext=(src, 0),
-                        arrowprops=dict(arrowstyle="->", lw=0.5 + 4 * w, color=plt.cm.Reds(0.3 + 0.7 * w)))  # fmt: skip
+            ax.annotate(
+                "",
+                xy=(dst, 0),
+                xytext=(src, 0),
+                arrowprops=dict(arrowstyle="->", lw=0.5 + 4 * w, color=plt.cm.Reds(0.3 + 0.7 * w)),
+            )
         ax.set_title(f"{stage}: edge mask")
         ax.axis("off")
     fig.suptitle(title)

@@ -1,5 +1,6 @@
 """``reasoning=mlp``: the MLP baseline of Sec. 4.4.1. The chain graph's node features enter as one flat vector;
 an MLP gives P_o and the thesis' stage classifier gives P_g, so only the graph encoder is replaced."""
+
 from __future__ import annotations
 
 from torch import nn

@@ -1,4 +1,5 @@
 """Lightning glue shared by the torch reasoning methods: the joint cross-entropy objective and the data module."""
+
 from __future__ import annotations
 
 import lightning.pytorch as pl

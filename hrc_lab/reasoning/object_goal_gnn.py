@@ -8,15 +8,17 @@ heads that give P_o and P_g directly, with no stage classifier.
   the packing order (it cannot tell goal positions apart).
 - ``gnn_task`` is the same network trained on the thesis' position-specified labels.
 """
+
 from __future__ import annotations
 
 import torch
 from torch import nn
 from torch_geometric.data import Data
-from torch_geometric.nn import SAGEConv, global_mean_pool
+from torch_geometric.nn import global_mean_pool
 
 from hrc_lab.env.package_to_order import StageObservation
 from hrc_lab.reasoning.base import TorchReasoner
+from hrc_lab.reasoning.chain_sage import SAGEStack
 from hrc_lab.reasoning.configs import ObjectGoalGNNConfig
 from hrc_lab.reasoning.encoding import object_goal_graph
 
@@ -24,16 +26,12 @@ from hrc_lab.reasoning.encoding import object_goal_graph
 class ObjectGoalGNN(nn.Module):
     def __init__(self, in_channels: int, hidden: int, n_o: int, n_g: int, layers: int = 3) -> None:
         super().__init__()
-        sizes = [in_channels] + [hidden] * layers
-        self.convs = nn.ModuleList(SAGEConv(a, b, aggr="mean", normalize=True) for a, b in zip(sizes, sizes[1:]))
+        self.sage = SAGEStack(in_channels, hidden, layers)
         self.head_o = nn.Linear(hidden, n_o)
         self.head_g = nn.Linear(hidden, n_g)
 
     def forward(self, batch, teacher_forcing: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
-        h = batch.x
-        for conv in self.convs:
-            h = conv(h, batch.edge_index).relu()
-        graph = global_mean_pool(h, batch.batch)
+        graph = global_mean_pool(self.sage(batch.x, batch.edge_index), batch.batch)
         return self.head_o(graph), self.head_g(graph)
 
 

@@ -1,5 +1,6 @@
 """``reasoning=rf``: the Random Forest baseline of Sec. 4.4.1 (scikit-learn). One forest classifies P_o from the
 flat observation; a second classifies P_g from [one-hot P_o, g_selected], mirroring the two-stage structure."""
+
 from __future__ import annotations
 
 import numpy as np

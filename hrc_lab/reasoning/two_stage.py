@@ -2,6 +2,7 @@
 
 Shared by ``ours`` (GraphSAGE encoder) and ``mlp`` (flat encoder): only the encoder producing P_o differs.
 """
+
 from __future__ import annotations
 
 import torch

@@ -1,4 +1,5 @@
 """Turning MLflow runs into report sections and files."""
+
 from __future__ import annotations
 
 import shutil

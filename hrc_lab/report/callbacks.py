@@ -1,5 +1,6 @@
 """Hydra callback of the experiment sweeps: validate once and set up the MLflow store before the jobs start,
 then print the table of the sweep's runs beside the thesis' values when they are done."""
+
 from __future__ import annotations
 
 import sys

@@ -1,4 +1,5 @@
 """Report sections of the Ch.4 reasoning experiments: Table 4.1, Fig. 4.7, the practical scenarios, Fig. 4.9."""
+
 from __future__ import annotations
 
 import matplotlib
@@ -32,11 +33,20 @@ def table_4_1(runs: pd.DataFrame) -> Section:
         row = {"method": LABELS.get(method, method)}
         for cell in cells:
             ours = stats[(stats.method == method) & (stats.cell == cell)]
-            mean, std, n = (ours.iloc[0][["mean", "std", "n"]] if len(ours) else (np.nan, np.nan, 0))
+            mean, std, n = ours.iloc[0][["mean", "std", "n"]] if len(ours) else (np.nan, np.nan, 0)
             ref = thesis.get(method, [None] * 4)[CELLS.index(cell)] if cell in CELLS else None
             row[cell] = f"{fmt(mean, std)} (thesis {fmt(*ref) if ref else '–'})"
-            csv.append({"method": method, "cell": cell, "sr_mean": mean, "sr_std": std, "seeds": int(n),
-                        "thesis_mean": ref[0] if ref else None, "thesis_std": ref[1] if ref else None})  # fmt: skip
+            csv.append(
+                {
+                    "method": method,
+                    "cell": cell,
+                    "sr_mean": mean,
+                    "sr_std": std,
+                    "seeds": int(n),
+                    "thesis_mean": ref[0] if ref else None,
+                    "thesis_std": ref[1] if ref else None,
+                }
+            )
         rows.append(row)
     latency = runs[runs.method == "ours"].groupby("cell")[["latency_ms_batch1", "latency_ms_batched"]].mean()
     seeds = sorted(runs.seed.unique())
@@ -50,10 +60,18 @@ def table_4_1(runs: pd.DataFrame) -> Section:
         ref_ms = thesis_results()["ch4"]["text"]["reasoning_latency_ms"]
         lat = latency.reindex(_ordered(latency.index, CELLS)).round(3).reset_index()
         lat.columns = ["cell", "ms per decision, batch 1 (median)", "ms per decision, batched"]
-        text += ["", f"Reasoning latency of `ours` on this CPU, graph construction included (thesis: {ref_ms} ms):",
-                 "", lat.to_markdown(index=False)]  # fmt: skip
-    return Section("Table 4.1: reasoning success rates", "\n".join(text), pd.DataFrame(csv),
-                   {"table_4_1.png": _bar_plot(pd.DataFrame(csv), cells, methods)})  # fmt: skip
+        text += [
+            "",
+            f"Reasoning latency of `ours` on this CPU, graph construction included (thesis: {ref_ms} ms):",
+            "",
+            lat.to_markdown(index=False),
+        ]
+    return Section(
+        "Table 4.1: reasoning success rates",
+        "\n".join(text),
+        pd.DataFrame(csv),
+        {"table_4_1.png": _bar_plot(pd.DataFrame(csv), cells, methods)},
+    )
 
 
 def _bar_plot(frame: pd.DataFrame, cells: list[str], methods: list[str]):
@@ -75,7 +93,7 @@ def _bar_plot(frame: pd.DataFrame, cells: list[str], methods: list[str]):
 
 def _lambda_columns(runs: pd.DataFrame, case: str) -> dict[float, str]:
     prefix = f"{case}_sr_lam"
-    return {float(c[len(prefix):]): c for c in runs.columns if c.startswith(prefix)}
+    return {float(c[len(prefix) :]): c for c in runs.columns if c.startswith(prefix)}
 
 
 @register_section("fig_4_7")
@@ -87,8 +105,17 @@ def fig_4_7(runs: pd.DataFrame) -> Section:
     for case in ("case1", "case2"):
         for ratio, column in sorted(_lambda_columns(runs, case).items()):
             for _, r in mean_std(runs, ["method", "cell"], column).iterrows():
-                records.append({"case": case, "ratio": ratio, "method": r.method, "cell": r.cell,
-                                "sr_mean": r["mean"], "sr_std": r["std"], "seeds": int(r.n)})  # fmt: skip
+                records.append(
+                    {
+                        "case": case,
+                        "ratio": ratio,
+                        "method": r.method,
+                        "cell": r.cell,
+                        "sr_mean": r["mean"],
+                        "sr_std": r["std"],
+                        "seeds": int(r.n),
+                    }
+                )
     frame = pd.DataFrame(records)
     text = [
         "Success rate over the training ratio λ. CASE 1: unseen goal configurations (selections never trained on; "
@@ -109,8 +136,12 @@ def fig_4_7(runs: pd.DataFrame) -> Section:
             table.index = [LABELS.get(m, m) for m in table.index]
             table.columns = [f"λ={c:g}" for c in table.columns]
             text += ["", f"**{case.upper()}, {cell}**", "", table.to_markdown()]
-    return Section("Fig. 4.7: generalisation over the training ratio", "\n".join(text), frame,
-                   {"fig_4_7.png": _lambda_plot(frame, cells, methods, thesis)})  # fmt: skip
+    return Section(
+        "Fig. 4.7: generalisation over the training ratio",
+        "\n".join(text),
+        frame,
+        {"fig_4_7.png": _lambda_plot(frame, cells, methods, thesis)},
+    )
 
 
 def _lambda_plot(frame: pd.DataFrame, cells, methods, thesis):
@@ -119,15 +150,31 @@ def _lambda_plot(frame: pd.DataFrame, cells, methods, thesis):
         for col, cell in enumerate(cells):
             ax = axes[row, col]
             for method in methods:
-                part = frame[(frame.case == case) & (frame.cell == cell) & (frame.method == method)].sort_values("ratio")
-                ax.errorbar(part.ratio, part.sr_mean, yerr=part.sr_std, marker="o", capsize=2,
-                            label=LABELS.get(method, method))  # fmt: skip
+                part = frame[(frame.case == case) & (frame.cell == cell) & (frame.method == method)]
+                part = part.sort_values("ratio")
+                ax.errorbar(
+                    part.ratio, part.sr_mean, yerr=part.sr_std, marker="o", capsize=2, label=LABELS.get(method, method)
+                )
             if case == "case2" and cell in thesis["case2_ours_sr_at_lambda_1"]:
-                ax.scatter([1.0], [thesis["case2_ours_sr_at_lambda_1"][cell]], marker="*", s=160, color="black",
-                           zorder=4, label="thesis (ours)")  # fmt: skip
+                ax.scatter(
+                    [1.0],
+                    [thesis["case2_ours_sr_at_lambda_1"][cell]],
+                    marker="*",
+                    s=160,
+                    color="black",
+                    zorder=4,
+                    label="thesis (ours)",
+                )
             if case == "case1" and cell == "3of5":
-                ax.scatter([0.6], [thesis["case1_ours_unseen_sr_at_lambda_0.6_3of5"]], marker="*", s=160,
-                           color="black", zorder=4, label="thesis (ours)")  # fmt: skip
+                ax.scatter(
+                    [0.6],
+                    [thesis["case1_ours_unseen_sr_at_lambda_0.6_3of5"]],
+                    marker="*",
+                    s=160,
+                    color="black",
+                    zorder=4,
+                    label="thesis (ours)",
+                )
             ax.set_title(f"{case.upper()} {cell}")
             ax.set_xlabel("training ratio λ")
             ax.set_ylim(-0.03, 1.05)

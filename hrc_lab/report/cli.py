@@ -1,4 +1,5 @@
 """``hrc-lab-report <topic>``: write ``reports/<topic>.md`` and its plots from the MLflow runs of its tables."""
+
 from __future__ import annotations
 
 import argparse

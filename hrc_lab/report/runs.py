@@ -1,4 +1,5 @@
 """Fetching the MLflow runs of an experiment as one DataFrame row per run."""
+
 from __future__ import annotations
 
 import pandas as pd

@@ -1,9 +1,10 @@
 """Report sections: one builder per table or figure (keyed by the ``table`` tag of its runs), and the topics
 (report files) that gather them."""
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import pandas as pd
 
@@ -32,10 +33,14 @@ def register_section(table: str):
 TOPICS = {
     "ch4_reasoning": (
         "Ch.4 reasoning module (GraphSAGE importance ranking) vs. baselines",
-        [("ch4/table_4_1", "table_4_1"), ("ch4/fig_4_7", "fig_4_7"), ("ch4/practical", "practical"),
-         ("ch4/fig_4_9", "fig_4_9")],
+        [
+            ("ch4/table_4_1", "table_4_1"),
+            ("ch4/fig_4_7", "fig_4_7"),
+            ("ch4/practical", "practical"),
+            ("ch4/fig_4_9", "fig_4_9"),
+        ],
     ),
-}  # fmt: skip
+}
 
 
 def load_sections() -> None:

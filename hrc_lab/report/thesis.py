@@ -1,4 +1,5 @@
 """The thesis' published numbers (a copy of shared/reference/thesis_results.yaml, transcribed from Ma, 2024)."""
+
 from __future__ import annotations
 
 from functools import lru_cache
@@ -15,7 +16,7 @@ def thesis_results() -> dict:
 
 
 def fmt(mean: float | None, std: float | None = None, digits: int = 2) -> str:
-    """"0.96 ± 0.01", "0.96" without a spread, "–" for a missing value."""
+    """ "0.96 ± 0.01", "0.96" without a spread, "–" for a missing value."""
     if mean is None or mean != mean:  # None or NaN
         return "–"
     if std is None or std != std:

@@ -1,0 +1,27 @@
+# Shortcuts; each target is one documented command (see README.md).
+.PHONY: install quick test test-all reproduce-ch4 report-ch4 mlflow-ui
+
+install:
+	bash scripts/install.sh
+
+quick: install  ## a few-minute Table 4.1, printed at the end
+	.venv/bin/hrc-lab experiment=ch4/table_4_1_quick hydra/launcher=joblib
+
+test: install
+	.venv/bin/python -m pytest
+
+test-all: install  ## including slow end-to-end tests
+	.venv/bin/python -m pytest -m ""
+
+reproduce-ch4: install  ## every Ch.4 reasoning table and figure, then the committed report
+	.venv/bin/hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib
+	.venv/bin/hrc-lab experiment=ch4/fig_4_7 hydra/launcher=joblib
+	.venv/bin/hrc-lab experiment=ch4/practical hydra/launcher=joblib
+	.venv/bin/hrc-lab experiment=ch4/fig_4_9
+	.venv/bin/hrc-lab-report ch4_reasoning
+
+report-ch4:
+	.venv/bin/hrc-lab-report ch4_reasoning
+
+mlflow-ui:  ## http://127.0.0.1:5000
+	.venv/bin/mlflow ui --backend-store-uri sqlite:///runs/mlflow.db --host 127.0.0.1 --port 5000 --workers 1

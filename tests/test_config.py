@@ -1,0 +1,61 @@
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from hrc_lab.config import validate_config
+from hrc_lab.registry import ConfigError
+
+EXPERIMENTS = sorted(
+    str(p.relative_to(Path(__file__).resolve().parents[1] / "conf" / "experiment")).removesuffix(".yaml")
+    for p in (Path(__file__).resolve().parents[1] / "conf" / "experiment").rglob("*.yaml")
+)
+
+
+@pytest.mark.parametrize("experiment", EXPERIMENTS)
+def test_every_experiment_config_composes_and_validates(compose_config, experiment):
+    validated = validate_config(compose_config(f"experiment={experiment}"))
+    assert validated.protocol is not None and validated.env.n_selected <= validated.env.n_objects
+
+
+@pytest.mark.parametrize(
+    "override, key",
+    [
+        ("env.n_selected=7", "env.n_selected"),
+        ("+reasoning.hiden=3", "reasoning.hiden"),
+        ("reasoning.hidden=abc", "reasoning.hidden"),
+        ("reasoning.lr=-1", "reasoning.lr"),
+        ("+trainer.max_epoch=3", "trainer.max_epoch"),
+        ("+env.n_object=3", "env.n_object"),
+        ("protocol.n_folds=1", "protocol.n_folds"),
+        ("+foo=1", "foo"),
+        ("seed=-2", "seed"),
+        ("logger.tracking_uri=runs/mlflow.db", "logger.tracking_uri"),
+        ("reasoning=gnn reasoning.label_scheme=goal", "reasoning.label_scheme"),
+    ],
+)
+def test_bad_values_fail_naming_the_key(compose_config, override, key):
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+        validate_config(compose_config("experiment=ch4/table_4_1", *override.split()))
+
+
+def test_missing_experiment_is_explained(compose_config):
+    with pytest.raises(ConfigError, match="experiment="):
+        validate_config(compose_config())
+
+
+def test_cli_rejects_a_bad_value_within_two_seconds(cli_env):
+    start = time.perf_counter()
+    result = subprocess.run(
+        [sys.executable, "-m", "hrc_lab.cli", "experiment=ch4/table_4_1", "env.n_selected=9", "hydra.mode=RUN"],
+        capture_output=True,
+        text=True,
+        env=cli_env,
+        timeout=60,
+    )
+    elapsed = time.perf_counter() - start
+    assert result.returncode != 0
+    assert "env.n_selected" in result.stderr
+    assert elapsed < 2.0, f"validation took {elapsed:.2f} s"

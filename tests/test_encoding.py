@@ -1,0 +1,70 @@
+import numpy as np
+import pytest
+
+from hrc_lab.env.package_to_order import PackageToOrderSpec, sample_episode, stage_observations
+from hrc_lab.reasoning.encoding import (
+    POSITION_SCALE,
+    chain_graph,
+    flat_vector,
+    goal_table,
+    object_goal_graph,
+    order_labels,
+)
+
+SPEC = PackageToOrderSpec(n_objects=5, n_selected=3)
+CONFIGURATION = ((1, 2), (3, 0), (4, 1))
+
+
+def observations(**kwargs):
+    return stage_observations(sample_episode(SPEC, CONFIGURATION, np.random.default_rng(0), **kwargs))
+
+
+def test_chain_graph_has_one_node_per_product_and_next_neighbour_edges():
+    obs = observations()[0]
+    graph = chain_graph(obs, SPEC)
+    assert graph.x.shape == (5, 4)
+    assert graph.edge_index.tolist() == [[0, 1, 2, 3], [1, 2, 3, 4]]
+    assert graph.x[:, 3].tolist() == [0, 1, 0, 1, 1]  # feature I: selected or not
+    expected = (obs.positions[2] - [0, 0, SPEC.table_z]) * POSITION_SCALE
+    np.testing.assert_allclose(graph.x[2, :3].numpy(), expected, rtol=1e-6)
+    both = chain_graph(obs, SPEC, bidirectional=True)
+    assert both.edge_index.shape == (2, 8)
+
+
+def test_chain_graph_drops_missing_products():
+    for seed in range(10):
+        episode = sample_episode(SPEC, CONFIGURATION, np.random.default_rng(seed), n_missing=2)
+        graph = chain_graph(stage_observations(episode)[0], SPEC)
+        assert graph.num_nodes == 3
+        assert graph.edge_index.shape == (2, 2)
+        assert set(graph.product.tolist()).isdisjoint(episode.missing)
+
+
+def test_goal_table_rows_follow_p_o():
+    placing = observations()[1]  # product 2 (index 1) is held, its goal is slot 3
+    table = goal_table(placing, SPEC)
+    slot3 = (placing.slot_positions[2] - [0, 0, SPEC.table_z]) * POSITION_SCALE
+    np.testing.assert_allclose(table[0], slot3)  # row 0: the held product's goal
+    np.testing.assert_allclose(table[2], slot3)  # row 1+i: product i's goal
+    np.testing.assert_array_equal(table[1], 0)  # product 1 is not selected
+
+
+def test_object_goal_graph_is_fully_connected_with_goal_nodes():
+    obs = observations()[0]
+    graph = object_goal_graph(obs, SPEC, "order")
+    n = 5 + 3
+    assert graph.x.shape == (n, 3 + 1 + 5 + 2)
+    assert graph.edge_index.shape == (2, n * (n - 1))
+    assert graph.x[:, 3].sum() == 3  # is_goal
+    assert (int(graph.o_label), int(graph.g_label)) == order_labels(obs)
+
+
+def test_order_labels_do_not_change_between_stages():
+    pick, place = observations()[:2]
+    assert order_labels(pick) == order_labels(place) == (2, 1)
+
+
+def test_flat_vector_needs_every_product():
+    assert flat_vector(observations()[0], SPEC).shape == (20,)
+    with pytest.raises(ValueError, match="every product present"):
+        flat_vector(observations(n_missing=1)[0], SPEC)
