@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -32,3 +33,10 @@ def cli_env(tmp_path):
     """Environment for running the console scripts with all outputs under tmp_path."""
     env = dict(os.environ, HRC_LAB_RUNS=str(tmp_path / "runs"), PYTHONWARNINGS="ignore")
     return env
+
+
+@pytest.fixture(scope="session")
+def console_script():
+    """console_script(name) -> path of an installed console script (hrc-lab, hrc-lab-report) beside the running
+    interpreter, so the tests work without an activated venv."""
+    return lambda name: str(Path(sys.executable).with_name(name))

@@ -9,11 +9,11 @@ TINY = ["trainer.max_epochs=1", "reasoning.steps_per_epoch=5", "protocol.min_dem
 
 
 @pytest.fixture(scope="module")
-def tiny_sweep(tmp_path_factory):
+def tiny_sweep(tmp_path_factory, console_script):
     runs = tmp_path_factory.mktemp("smoke") / "runs"
     env = {**__import__("os").environ, "HRC_LAB_RUNS": str(runs), "PYTHONWARNINGS": "ignore"}
     command = [
-        "hrc-lab",
+        console_script("hrc-lab"),
         "-m",
         "experiment=ch4/table_4_1",
         "env=package_to_order_2of3",
@@ -54,10 +54,10 @@ def test_sweep_prints_the_summary_table(tiny_sweep):
     assert "Table 4.1" in stdout and "(thesis 1.00 ± 0.00)" in stdout
 
 
-def test_report_command_writes_markdown_and_plot(tiny_sweep, tmp_path):
+def test_report_command_writes_markdown_and_plot(tiny_sweep, tmp_path, console_script):
     runs, env, _ = tiny_sweep
     command = [
-        "hrc-lab-report",
+        console_script("hrc-lab-report"),
         "ch4_reasoning",
         "--tracking-uri",
         f"sqlite:///{runs / 'mlflow.db'}",

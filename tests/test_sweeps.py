@@ -9,9 +9,9 @@ TINY = ["trainer.max_epochs=1", "reasoning.steps_per_epoch=5", "protocol.min_dem
 
 
 @pytest.mark.slow
-def test_joblib_launcher_runs_jobs_in_parallel_into_one_experiment(tmp_path, cli_env):
+def test_joblib_launcher_runs_jobs_in_parallel_into_one_experiment(tmp_path, cli_env, console_script):
     command = [
-        "hrc-lab",
+        console_script("hrc-lab"),
         "-m",
         "experiment=ch4/table_4_1",
         "hydra/launcher=joblib",
@@ -31,8 +31,15 @@ def test_joblib_launcher_runs_jobs_in_parallel_into_one_experiment(tmp_path, cli
 
 
 @pytest.mark.slow
-def test_single_run_mode(tmp_path, cli_env):
-    command = ["hrc-lab", "experiment=ch4/table_4_1", "hydra.mode=RUN", "env=package_to_order_2of3", "seed=3", *TINY]
+def test_single_run_mode(tmp_path, cli_env, console_script):
+    command = [
+        console_script("hrc-lab"),
+        "experiment=ch4/table_4_1",
+        "hydra.mode=RUN",
+        "env=package_to_order_2of3",
+        "seed=3",
+        *TINY,
+    ]
     result = subprocess.run(command, capture_output=True, text=True, env=cli_env, timeout=300)
     assert result.returncode == 0, result.stderr[-3000:]
     client = MlflowClient(f"sqlite:///{tmp_path / 'runs' / 'mlflow.db'}")
