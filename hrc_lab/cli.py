@@ -1,6 +1,7 @@
 """``hrc-lab``: run any experiment, e.g. ``hrc-lab experiment=ch4/table_4_1``.
 
-One Hydra job = one MLflow run named ``<experiment>-<method>-<cell>-seed<k>``. The config is validated before
+One Hydra job = one MLflow run named ``<experiment>-<method>-<cell>-seed<k>`` (cell: the env's table column,
+e.g. ``4of5`` or ``3goals``). The config is validated before
 anything heavy is imported, so a bad key fails within a second. Sweeps use Hydra's launchers
 (``hydra/launcher=joblib`` locally; submitit or Ray on a cluster).
 """
@@ -22,8 +23,7 @@ CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
 log = logging.getLogger("hrc_lab")
 
 
-def run_name(cfg: DictConfig) -> str:
-    cell = f"{cfg.env.n_selected}of{cfg.env.n_objects}"
+def run_name(cfg: DictConfig, cell: str) -> str:
     method = cfg.reasoning.name if cfg.get("reasoning") else "none"
     return f"{cfg.name}-{method}-{cell}-seed{cfg.seed}"
 
@@ -55,19 +55,20 @@ def run(cfg: DictConfig) -> dict[str, float]:
         "table": str(cfg.table),
         "experiment": str(cfg.name),
         "method": cfg.reasoning.name if cfg.get("reasoning") else "none",
-        "cell": f"{cfg.env.n_selected}of{cfg.env.n_objects}",
+        "cell": validated.env.cell,
         "seed": str(cfg.seed),
         "sweep": sweep_id(),
     }
     output_dir = Path(HydraConfig.get().runtime.output_dir)
-    with RunTracker(validated.logger, cfg.name, run_name(cfg), tags) as tracker:
+    name = run_name(cfg, validated.env.cell)
+    with RunTracker(validated.logger, cfg.name, name, tags) as tracker:
         tracker.log_config(cfg)
         metrics = protocol(RunContext(validated, tracker, cfg.seed))
         tracker.log_metrics(metrics)
         tracker.log_artifact(output_dir / ".hydra", "hydra")
         tracker.log_text(str(output_dir.resolve()), "hydra/output_dir.txt")
     shown = ", ".join(f"{k}={v:.3f}" for k, v in metrics.items() if "latency" not in k and not k.startswith("n_"))
-    log.info("%s: %s (MLflow run %s)", run_name(cfg), shown, tracker.run_id)
+    log.info("%s: %s (MLflow run %s)", name, shown, tracker.run_id)
     return metrics
 
 

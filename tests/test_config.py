@@ -17,7 +17,7 @@ EXPERIMENTS = sorted(
 @pytest.mark.parametrize("experiment", EXPERIMENTS)
 def test_every_experiment_config_composes_and_validates(compose_config, experiment):
     validated = validate_config(compose_config(f"experiment={experiment}"))
-    assert validated.protocol is not None and validated.env.n_selected <= validated.env.n_objects
+    assert validated.protocol is not None and validated.env.cell
 
 
 @pytest.mark.parametrize(
@@ -59,3 +59,8 @@ def test_cli_rejects_a_bad_value_within_two_seconds(cli_env):
     assert result.returncode != 0
     assert "env.n_selected" in result.stderr
     assert elapsed < 2.0, f"validation took {elapsed:.2f} s"
+
+
+def test_ch5_configs_reject_a_wrong_goal_count(compose_config):
+    with pytest.raises(ConfigError, match="env.n_goals"):
+        validate_config(compose_config("experiment=ch5/fig_5_7", "env.n_goals=5"))

@@ -77,3 +77,42 @@ PROTOCOLS.register("ch4_table_4_1", Table41Protocol, f"{CH4}:table_4_1")
 PROTOCOLS.register("ch4_fig_4_7", Fig47Protocol, f"{CH4}:fig_4_7")
 PROTOCOLS.register("ch4_practical", PracticalProtocol, f"{CH4}:practical")
 PROTOCOLS.register("ch4_fig_4_9", Fig49Protocol, f"{CH4}:fig_4_9")
+
+
+@dataclass
+class Fig57Protocol:
+    """Training ratio lambda over the scenarios (every partially assembled state of every goal in play); the
+    planner is scored on all of them. ``train_counts`` adds absolute training-set sizes (the thesis' 143 of 186)."""
+
+    ratios: list[float] = field(default_factory=lambda: [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0])
+    train_counts: list[int] = field(default_factory=lambda: [143])
+
+    def __post_init__(self) -> None:
+        if not self.ratios or any(not 0 < r <= 1 for r in self.ratios):
+            raise ValueError(f"protocol.ratios must be non-empty values in (0, 1], got {self.ratios}")
+        if any(n < 1 for n in self.train_counts):
+            raise ValueError(f"protocol.train_counts must be positive, got {self.train_counts}")
+
+
+@dataclass
+class Table52PlannerProtocol:
+    """Whole assembly sessions with perfect action labels through the Algorithm 3 loop: Semantic Guidance accuracy
+    after every assembly action, Semantic Control accuracy at every screw event."""
+
+    train_ratio: float = 1.0
+    sessions: int = 20
+    p_screw: float = 0.3  # chance that the human screws (hands the next part to the robot) instead of assembling
+    latency_samples: int = 100
+
+    def __post_init__(self) -> None:
+        if not 0 < self.train_ratio <= 1:
+            raise ValueError(f"protocol.train_ratio must be in (0, 1], got {self.train_ratio}")
+        if not 0 <= self.p_screw < 1:
+            raise ValueError(f"protocol.p_screw must be in [0, 1), got {self.p_screw}")
+        if self.sessions < 1:
+            raise ValueError(f"protocol.sessions must be >= 1, got {self.sessions}")
+
+
+CH5 = "hrc_lab.experiments.ch5_planner"
+PROTOCOLS.register("ch5_fig_5_7", Fig57Protocol, f"{CH5}:fig_5_7")
+PROTOCOLS.register("ch5_table_5_2_planner", Table52PlannerProtocol, f"{CH5}:table_5_2_planner")

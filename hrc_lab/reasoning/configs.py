@@ -65,3 +65,15 @@ REASONERS.register("gnn", ObjectGoalGNNConfig, "hrc_lab.reasoning.object_goal_gn
 REASONERS.register("gnn_task", ObjectGoalGNNConfig, "hrc_lab.reasoning.object_goal_gnn:ObjectGoalGNNReasoner")
 REASONERS.register("mlp", FlatMLPConfig, "hrc_lab.reasoning.flat_mlp:FlatMLPReasoner")
 REASONERS.register("rf", RandomForestConfig, "hrc_lab.reasoning.random_forest:RandomForestReasoner")
+
+
+@dataclass
+class SemanticPlannerConfig(TorchReasonerConfig):
+    feature_dim: int = 16  # embedding size of each categorical node feature (type, position)
+    hidden: int = 64
+    layers: int = 2
+    word_dim: int = 16
+    lstm_hidden: int = 64
+
+
+REASONERS.register("semantic_planner", SemanticPlannerConfig, "hrc_lab.reasoning.semantic_planner:SemanticPlanner")

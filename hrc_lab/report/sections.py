@@ -44,4 +44,4 @@ TOPICS = {
 
 
 def load_sections() -> None:
-    from hrc_lab.report import ch4_reasoning  # noqa: F401  (registration)
+    from hrc_lab.report import ch4_reasoning, ch5_planner  # noqa: F401  (registration)
