@@ -136,6 +136,7 @@ def table_5_2_planner(ctx: RunContext) -> dict[str, float]:
         planner.plan([assembled_pairs(spec, scenario)])
         latencies.append(time.perf_counter() - start)
     ctx.tracker.log_table(pd.DataFrame(rows), "table_5_2_planner_sessions")
+    ctx.tracker.log_torch_model(planner.network, "model/semantic_planner.pt")
     return {
         "sg_acc": float(np.mean(sg)),
         "sc_acc": float(np.mean(sc)) if sc else float("nan"),
