@@ -91,3 +91,11 @@ def test_a_trial_succeeds_only_if_all_2n_predictions_are_right():
     result = evaluate(_Oracle(wrong_index=9), episodes)  # stage 2 of trial 2 (8 stages per 4of5 trial)
     assert result["sr"] == pytest.approx(0.8)
     assert result["acc_g"] == pytest.approx(1 - 1 / 40)
+
+
+@pytest.mark.parametrize("method", TORCH_METHODS)
+def test_scored_labels_are_the_trained_labels(method):
+    reasoner = build_reasoner(OmegaConf.create({"name": method}), SPEC)
+    obs = observations(demos(2))
+    encoded = np.array([[int(d.o_label), int(d.g_label)] for d in map(reasoner.encode, obs)])
+    np.testing.assert_array_equal(reasoner.labels(obs), encoded)

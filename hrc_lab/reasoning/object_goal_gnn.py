@@ -11,6 +11,7 @@ heads that give P_o and P_g directly, with no stage classifier.
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 from torch import nn
 from torch_geometric.data import Data
@@ -20,7 +21,7 @@ from hrc_lab.env.package_to_order import StageObservation
 from hrc_lab.reasoning.base import TorchReasoner
 from hrc_lab.reasoning.chain_sage import SAGEStack
 from hrc_lab.reasoning.configs import ObjectGoalGNNConfig
-from hrc_lab.reasoning.encoding import object_goal_graph
+from hrc_lab.reasoning.encoding import object_goal_graph, order_labels, task_labels
 
 
 class ObjectGoalGNN(nn.Module):
@@ -44,3 +45,7 @@ class ObjectGoalGNNReasoner(TorchReasoner):
 
     def encode(self, obs: StageObservation) -> Data:
         return object_goal_graph(obs, self.spec, self.cfg.label_scheme)
+
+    def labels(self, observations: list[StageObservation]) -> np.ndarray:
+        scheme = order_labels if self.cfg.label_scheme == "order" else task_labels
+        return np.array([scheme(o) for o in observations])

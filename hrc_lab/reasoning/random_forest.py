@@ -9,7 +9,7 @@ from sklearn.ensemble import RandomForestClassifier
 from hrc_lab.env.package_to_order import StageObservation
 from hrc_lab.reasoning.base import Reasoner
 from hrc_lab.reasoning.configs import RandomForestConfig
-from hrc_lab.reasoning.encoding import flat_vector, goal_table, task_labels
+from hrc_lab.reasoning.encoding import flat_vector, goal_table
 
 
 class RandomForestReasoner(Reasoner):
@@ -35,6 +35,3 @@ class RandomForestReasoner(Reasoner):
         o_pred = self.forest_o.predict(np.stack([flat_vector(o, self.spec) for o in observations]))
         g_pred = self.forest_g.predict(self._stage_features(observations, o_pred))
         return np.column_stack([o_pred, g_pred])
-
-    def labels(self, observations: list[StageObservation]) -> np.ndarray:
-        return np.array([task_labels(o) for o in observations])
