@@ -17,7 +17,7 @@ reproduce-ch4: install  ## every Ch.4 reasoning table and figure, then the commi
 	.venv/bin/hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib
 	.venv/bin/hrc-lab experiment=ch4/fig_4_7 hydra/launcher=joblib
 	.venv/bin/hrc-lab experiment=ch4/practical hydra/launcher=joblib
-	.venv/bin/hrc-lab experiment=ch4/fig_4_9
+	.venv/bin/hrc-lab experiment=ch4/fig_4_9 hydra/launcher=joblib
 	.venv/bin/hrc-lab-report ch4_reasoning
 
 report-ch4:

@@ -64,3 +64,14 @@ def test_cli_rejects_a_bad_value_within_two_seconds(cli_env):
 def test_ch5_configs_reject_a_wrong_goal_count(compose_config):
     with pytest.raises(ConfigError, match="env.n_goals"):
         validate_config(compose_config("experiment=ch5/fig_5_7", "env.n_goals=5"))
+
+
+@pytest.mark.parametrize("experiment", [e for e in EXPERIMENTS if not e.endswith("_quick")])
+def test_every_experiment_has_a_report_section_and_topic(compose_config, experiment):
+    from hrc_lab.report.build import COMMANDS
+    from hrc_lab.report.sections import SECTIONS, TOPICS, load_sections
+
+    cfg = compose_config(f"experiment={experiment}")
+    load_sections()
+    assert cfg.table in SECTIONS and cfg.table in COMMANDS
+    assert (cfg.name, cfg.table) in {part for *_, parts in TOPICS.values() for part in parts}

@@ -17,7 +17,7 @@ def test_joblib_launcher_runs_jobs_in_parallel_into_one_experiment(tmp_path, cli
         "hydra/launcher=joblib",
         "hydra.launcher.n_jobs=2",
         "env=package_to_order_2of3,package_to_order_3of3",
-        "reasoning=ours,rf",
+        "reasoning=ours,mlp",
         "seed=0",
         *TINY,
     ]

@@ -86,7 +86,7 @@ def _bar_plot(frame: pd.DataFrame, cells: list[str], methods: list[str]):
     ax.set_ylim(0, 1.05)
     ax.set_ylabel("success rate")
     ax.set_title("Table 4.1 - bars: ours (mean ± std over seeds); black ticks: thesis")
-    ax.legend(ncol=len(methods), fontsize=8, loc="lower left")
+    ax.legend(ncol=len(methods), fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), frameon=False)
     fig.tight_layout()
     return fig
 
@@ -233,5 +233,7 @@ def fig_4_9(runs: pd.DataFrame) -> Section:
         "",
         table.reset_index().to_markdown(index=False),
     ]
-    artifacts = {f"fig_4_9_case{c}.png": (runs.iloc[0].run_id, f"plots/fig_4_9_case{c}.png") for c in (1, 2)}
+    shown = runs.sort_values("seed").iloc[0]
+    text += ["", f"Masks below: seed {shown.seed}; table: mean over seeds {sorted(runs.seed.unique())}."]
+    artifacts = {f"fig_4_9_case{c}.png": (shown.run_id, f"plots/fig_4_9_case{c}.png") for c in (1, 2)}
     return Section("Fig. 4.9: GNNExplainer masks", "\n".join(text), table.reset_index(), {}, artifacts)

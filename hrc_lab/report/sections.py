@@ -29,16 +29,24 @@ def register_section(table: str):
     return decorator
 
 
-# report file -> (title, [(MLflow experiment, table tag), ...])
+# report file -> (title, where the data comes from, [(MLflow experiment, table tag), ...])
 TOPICS = {
     "ch4_reasoning": (
         "Ch.4 reasoning module (GraphSAGE importance ranking) vs. baselines",
+        "Our scenes come from the simulator-independent package-to-order spec (`hrc_lab/env/package_to_order.py`), "
+        "not the thesis' CoppeliaSim scenes.",
         [
             ("ch4/table_4_1", "table_4_1"),
             ("ch4/fig_4_7", "fig_4_7"),
             ("ch4/practical", "practical"),
             ("ch4/fig_4_9", "fig_4_9"),
         ],
+    ),
+    "ch5_planner": (
+        "Ch.5 graph semantic planner: goal inference, next object and text plans",
+        "Our scenarios come from the assemble-to-order domain (`hrc_lab/env/assemble_to_order.py`) with our own three "
+        "goal configurations (`conf/env/ato.yaml`; the thesis' Fig. 5.4 is not legible in its text).",
+        [("ch5/fig_5_7", "fig_5_7"), ("ch5/table_5_2_planner", "table_5_2_planner")],
     ),
 }
 
