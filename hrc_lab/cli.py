@@ -1,7 +1,8 @@
 """``hrc-lab``: run any experiment, e.g. ``hrc-lab experiment=ch4/table_4_1``.
 
-One Hydra job = one MLflow run named ``<experiment>-<method>-<cell>-seed<k>`` (cell: the env's table column,
-e.g. ``4of5`` or ``3goals``). The config is validated before
+One Hydra job = one MLflow run named ``<experiment>-<method>-<scenario>-seed<k>`` (scenario: the env's table
+column, e.g. ``4of5`` or ``3goals``, plus the robot-cell case when it is not CASE 1, e.g.
+``4of5_case2``). The config is validated before
 anything heavy is imported, so a bad key fails within a second. Sweeps use Hydra's launchers
 (``hydra/launcher=joblib`` locally; submitit or Ray on a cluster).
 """
@@ -23,9 +24,9 @@ CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
 log = logging.getLogger("hrc_lab")
 
 
-def run_name(cfg: DictConfig, cell: str) -> str:
+def run_name(cfg: DictConfig, scenario: str) -> str:
     method = cfg.reasoning.name if cfg.get("reasoning") else "none"
-    return f"{cfg.name}-{method}-{cell}-seed{cfg.seed}"
+    return f"{cfg.name}-{method}-{scenario}-seed{cfg.seed}"
 
 
 def sweep_id() -> str:
@@ -50,17 +51,19 @@ def run(cfg: DictConfig) -> dict[str, float]:
     torch.set_num_threads(cfg.num_threads)
     pl.seed_everything(cfg.seed, workers=True, verbose=False)
     protocol = PROTOCOLS.load(cfg.protocol.name)
+    scenario = getattr(validated.env, "scenario", validated.env.cell)
     tags = {
         "chapter": str(cfg.chapter),
         "table": str(cfg.table),
         "experiment": str(cfg.name),
         "method": cfg.reasoning.name if cfg.get("reasoning") else "none",
         "cell": validated.env.cell,
+        "scenario": scenario,
         "seed": str(cfg.seed),
         "sweep": sweep_id(),
     }
     output_dir = Path(HydraConfig.get().runtime.output_dir)
-    name = run_name(cfg, validated.env.cell)
+    name = run_name(cfg, scenario)
     with RunTracker(validated.logger, cfg.name, name, tags) as tracker:
         tracker.log_config(cfg)
         metrics = protocol(RunContext(validated, tracker, cfg.seed))

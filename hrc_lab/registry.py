@@ -58,9 +58,22 @@ class Registry:
         entry = self.get(node.name)
         try:
             body = {k: v for k, v in OmegaConf.to_container(node, resolve=True).items() if k != "name"}
-            return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(entry.schema), body))
+            return OmegaConf.to_object(OmegaConf.merge(_writable(OmegaConf.structured(entry.schema)), body))
         except OmegaConfBaseException as err:
             key = getattr(err, "full_key", None) or "?"
             raise ConfigError(f"{path}.{key}: {str(err).splitlines()[0]}") from None
         except (ValueError, TypeError) as err:  # raised by the schema's own checks (__post_init__)
             raise ConfigError(str(err)) from None
+
+
+def _writable(node: DictConfig) -> DictConfig:
+    """Clear the read-only flag that frozen dataclass schemas put on every (nested) node, so values can merge in;
+    the frozen instance built by ``to_object`` stays immutable."""
+    node._set_flag("readonly", False)
+    for key in node:
+        child = node._get_node(key)
+        if isinstance(child, DictConfig):
+            _writable(child)
+        else:
+            child._set_flag("readonly", False)
+    return node

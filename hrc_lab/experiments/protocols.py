@@ -116,3 +116,50 @@ class Table52PlannerProtocol:
 CH5 = "hrc_lab.experiments.ch5_planner"
 PROTOCOLS.register("ch5_fig_5_7", Fig57Protocol, f"{CH5}:fig_5_7")
 PROTOCOLS.register("ch5_table_5_2_planner", Table52PlannerProtocol, f"{CH5}:table_5_2_planner")
+
+
+@dataclass
+class CollectProtocol:
+    """Scripted-expert demonstrations of one robot-cell scenario, written as robomimic-style HDF5; the run also
+    measures the expert's success rate, the cell's speed and the change-point segmentation against the labels."""
+
+    episodes: int = 100
+    max_steps_per_subgoal: int = 30
+    segmentation_penalty: float = 1e-3  # PELT penalty on the continuous-linear cost (m^2)
+    subgoals_per_stage: int = 3  # sub-goals per detected stage: 5 re-sampled in Ch.3, the 3 designed ones in Ch.4
+    subgoal_mode: str = "designed"  # "resample" (Ch.3) or "designed" (Ch.4)
+    output: str | None = None  # default: <paths.runs_dir>/data/<scenario>_seed<k>.hdf5
+
+    def __post_init__(self) -> None:
+        if self.episodes < 1:
+            raise ValueError(f"protocol.episodes must be >= 1, got {self.episodes}")
+        if self.max_steps_per_subgoal < 1:
+            raise ValueError(f"protocol.max_steps_per_subgoal must be >= 1, got {self.max_steps_per_subgoal}")
+        if self.subgoals_per_stage < 1:
+            raise ValueError(f"protocol.subgoals_per_stage must be >= 1, got {self.subgoals_per_stage}")
+        if self.subgoal_mode not in ("resample", "designed"):
+            raise ValueError(f"protocol.subgoal_mode must be 'resample' or 'designed', got '{self.subgoal_mode}'")
+        if self.subgoal_mode == "designed" and self.subgoals_per_stage != 3:
+            raise ValueError("protocol.subgoals_per_stage must be 3 with subgoal_mode=designed (the expert's 3)")
+
+
+@dataclass
+class RenderDemoProtocol:
+    """One expert episode rendered off-screen (MUJOCO_GL=egl by default, or osmesa) to MP4."""
+
+    camera: str = "cellview"
+    width: int = 480
+    height: int = 360
+    frame_skip: int = 2  # render every k-th control step
+    publish_dir: str | None = None  # also copy the video here (e.g. reports/videos)
+
+    def __post_init__(self) -> None:
+        if self.width < 16 or self.height < 16:
+            raise ValueError(f"protocol.width/height must be >= 16, got {self.width}x{self.height}")
+        if self.frame_skip < 1:
+            raise ValueError(f"protocol.frame_skip must be >= 1, got {self.frame_skip}")
+
+
+DATA = "hrc_lab.experiments.collect"
+PROTOCOLS.register("collect", CollectProtocol, f"{DATA}:collect")
+PROTOCOLS.register("render_demo", RenderDemoProtocol, f"{DATA}:render_demo")

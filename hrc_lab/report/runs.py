@@ -7,7 +7,7 @@ from mlflow.tracking import MlflowClient
 
 from hrc_lab.tracking import resolve_tracking_uri
 
-KEY_TAGS = ("cell", "method", "seed")
+KEY_TAGS = ("scenario", "cell", "method", "seed")  # scenario: the cell plus the robot-cell case
 
 
 def fetch_runs(tracking_uri: str, experiment: str, sweep: str | None = None) -> pd.DataFrame:
@@ -30,6 +30,9 @@ def fetch_runs(tracking_uri: str, experiment: str, sweep: str | None = None) -> 
         return pd.DataFrame()
     frame = pd.DataFrame(rows)
     frame["seed"] = frame["seed"].astype(int)
+    if "scenario" not in frame:  # runs logged before the scenario tag existed
+        frame["scenario"] = frame["cell"]
+    frame["scenario"] = frame["scenario"].fillna(frame["cell"])
     return frame.drop_duplicates(subset=list(KEY_TAGS), keep="first").reset_index(drop=True)
 
 

@@ -48,8 +48,15 @@ TOPICS = {
         "goal configurations (`conf/env/ato.yaml`; the thesis' Fig. 5.4 is not legible in its text).",
         [("ch5/fig_5_7", "fig_5_7"), ("ch5/table_5_2_planner", "table_5_2_planner")],
     ),
+    "data_demonstrations": (
+        "Robot cells and scripted-expert demonstrations (Ch.3, Ch.4)",
+        "robosuite 1.5.1 UR5e with our suction cup on MuJoCo 3.9.0 (`hrc_lab/env/sim/`), not the thesis' CoppeliaSim "
+        "UR10; demonstrations come from a scripted expert (`hrc_lab/env/sim/expert.py`), not keyboard teleoperation. "
+        "Videos of one demonstration per cell are in `videos/`.",
+        [("data/collect_ch4", "collect_ch4"), ("data/collect_ch3", "collect_ch3")],
+    ),
 }
 
 
 def load_sections() -> None:
-    from hrc_lab.report import ch4_reasoning, ch5_planner  # noqa: F401  (registration)
+    from hrc_lab.report import ch4_reasoning, ch5_planner, data  # noqa: F401  (registration)

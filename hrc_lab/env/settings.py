@@ -1,0 +1,85 @@
+"""Config schemas of the robosuite cells (no simulator import: validating a config stays fast).
+
+``conf/env/package_to_order*.yaml`` validate to :class:`PackageToOrderConfig` (the task spec the reasoning module
+uses, plus a ``sim`` block for the robot cell) and ``conf/env/error_correction*.yaml`` to
+:class:`ErrorCorrectionConfig`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from hrc_lab.env.package_to_order import PackageToOrderSpec
+
+EC_TASKS = ("one_object", "two_object", "place", "stack")
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """The robot cell: control rate, horizon, success threshold, action limits and the scenario case."""
+
+    control_freq: int = 20  # Hz; one action per 50 ms (25 MuJoCo substeps of 2 ms)
+    horizon: int = 1000  # control steps per episode
+    success_threshold: float = 0.06  # delta_r of Eq. 3.6 / 4.7, m
+    max_joint_step_deg: float = 5.0  # per-step joint delta limit (thesis: -5 ... 5 deg)
+    yaw_action: bool = False  # add a wrist-3 delta to the action (DRL agent of 3.3)
+    disable_effector_on_collision: bool = False  # DRL setting of 3.3
+    case: int = 1  # CASE 1 / CASE 2 of the scenario
+    n_missing: int = 0  # products absent at the start (package_to_order, 4.4.5)
+
+    def __post_init__(self) -> None:
+        if self.control_freq < 1:
+            raise ValueError(f"env.sim.control_freq must be >= 1, got {self.control_freq}")
+        if self.horizon < 1:
+            raise ValueError(f"env.sim.horizon must be >= 1, got {self.horizon}")
+        if not 0 < self.success_threshold < 0.5:
+            raise ValueError(f"env.sim.success_threshold must be in (0, 0.5) m, got {self.success_threshold}")
+        if not 0 < self.max_joint_step_deg <= 30:
+            raise ValueError(f"env.sim.max_joint_step_deg must be in (0, 30], got {self.max_joint_step_deg}")
+        if self.case not in (1, 2):
+            raise ValueError(f"env.sim.case must be 1 or 2, got {self.case}")
+        if self.n_missing < 0:
+            raise ValueError(f"env.sim.n_missing must be >= 0, got {self.n_missing}")
+
+
+@dataclass(frozen=True)
+class PackageToOrderConfig(PackageToOrderSpec):
+    """The package-to-order spec plus the robot cell settings."""
+
+    sim: SimSettings = field(default_factory=SimSettings)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.sim.n_missing >= self.n_objects:
+            raise ValueError(f"env.sim.n_missing={self.sim.n_missing} must be smaller than env.n_objects")
+        if self.sim.case == 2 and self.n_selected < 2:
+            raise ValueError("env.sim.case=2 needs env.n_selected >= 2 (the human packs a proper subset)")
+
+    @property
+    def scenario(self) -> str:
+        """The cell plus the robot-cell case when it is not the default (``4of5``, ``4of5_case2_missing1``)."""
+        case = f"_case{self.sim.case}" if self.sim.case != 1 else ""
+        missing = f"_missing{self.sim.n_missing}" if self.sim.n_missing else ""
+        return f"{self.cell}{case}{missing}"
+
+
+@dataclass(frozen=True)
+class ErrorCorrectionConfig:
+    """Ch.3 error correction: ``task`` one_object | two_object | place | stack (case 1 only for place/stack)."""
+
+    task: str = "one_object"
+    sim: SimSettings = field(default_factory=lambda: SimSettings(horizon=400))
+
+    def __post_init__(self) -> None:
+        if self.task not in EC_TASKS:
+            raise ValueError(f"env.task must be one of {list(EC_TASKS)}, got '{self.task}'")
+        if self.task in ("place", "stack") and self.sim.case != 1:
+            raise ValueError(f"env.sim.case: the {self.task} task has one case only (1), got {self.sim.case}")
+
+    @property
+    def cell(self) -> str:
+        return self.task if self.task in ("place", "stack") else f"{self.task}_case{self.sim.case}"
+
+    @property
+    def scenario(self) -> str:
+        return self.cell

@@ -1,0 +1,381 @@
+"""The robot cell shared by the Ch.3 and Ch.4 environments: a UR5e with a suction cup at a table with cuboids.
+
+Action (thesis 3.3 and 4.3), one control step at ``control_freq`` Hz:
+    ``[dq_base, dq_shoulder, dq_elbow, suction]`` (+ ``dq_wrist3`` before suction with ``yaw_action=True``), joint
+    deltas in radians clipped to +-``max_joint_step`` (5 deg); suction > 0 means on. Wrist 1 and wrist 2 are not
+    actuated by the policy: they follow so that the tool keeps pointing down (wrist1 = -pi/2 - shoulder - elbow,
+    wrist2 = -pi/2). The six joint targets go to robosuite's BASIC composite controller whose arm part is
+    JOINT_POSITION (delta input, no scaling), i.e. the robot's own PD loop with gravity compensation.
+
+Collisions are scanned at every physics substep: any arm link touching anything but its mount, the cup touching
+an object while another object is held, the held object touching anything but its allowed supports, or a resting
+object touching another object. A collision fails the trial (Eq. 4.7) and, with ``disable_effector_on_collision``
+(the DRL setting of 3.3), switches the suction off for the rest of the episode.
+
+Reward (Eq. 3.6): 0 when every task object is within ``success_threshold`` (delta_r) of its goal, else -1.
+Success (Eq. 3.7 / 4.7): that, with no collision during the episode.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from robosuite.controllers import load_composite_controller_config, load_part_controller_config
+from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
+from robosuite.models.arenas import TableArena
+from robosuite.models.objects import BoxObject
+from robosuite.models.tasks import ManipulationTask
+from robosuite.utils.observables import Observable, sensor
+
+from hrc_lab.env.sim.suction import Suction, SuctionCup, weld_elements
+
+PICK, PLACE = 0, 1
+HOME_QPOS = np.array([0.0, -1.75, 1.9, -1.72, -np.pi / 2, 0.0])  # tool down, ~0.3 m above the table centre
+
+
+def arm_controller_config() -> dict:
+    """BASIC composite controller with a JOINT_POSITION arm taking raw joint deltas (robosuite 1.5 API)."""
+    config = load_composite_controller_config(robot="UR5e")
+    arm = load_part_controller_config(default_controller="JOINT_POSITION")
+    arm.update(input_max=np.pi, input_min=-np.pi, output_max=np.pi, output_min=-np.pi, kp=2500, damping_ratio=1)
+    arm["gripper"] = config["body_parts"]["right"].get("gripper", {"type": "GRIP"})
+    config["body_parts"]["right"] = arm
+    return config
+
+
+@dataclass
+class CellObject:
+    """A cuboid in the cell: name, half sizes (m) and colour."""
+
+    name: str
+    half_size: tuple[float, float, float]
+    rgba: tuple[float, float, float, float]
+
+
+class HRCCell(ManipulationEnv):
+    """Base class: subclasses define the objects, the fixtures and the task through the hooks below."""
+
+    PARK = np.array([0.6, 1.2, 0.03])  # where absent objects wait: on the floor, out of the arm's reach
+    transit_height = 0.15  # height of a carried object's centre above the table between stages, m
+
+    def __init__(
+        self,
+        objects: list[CellObject],
+        control_freq: float = 20,
+        horizon: int = 600,
+        success_threshold: float = 0.06,
+        max_joint_step: float = np.deg2rad(5.0),
+        yaw_action: bool = False,
+        disable_effector_on_collision: bool = False,
+        table_full_size: tuple[float, float, float] = (0.6, 1.0, 0.05),
+        seed: int | None = None,
+        has_offscreen_renderer: bool = False,
+        camera_names: str | list[str] = "frontview",
+        camera_heights: int = 240,
+        camera_widths: int = 320,
+    ) -> None:
+        self.cell_objects = objects
+        self.table_full_size = table_full_size
+        self.table_offset = np.array((0.0, 0.0, 0.8))
+        self.success_threshold = success_threshold
+        self.max_joint_step = max_joint_step
+        self.yaw_action = yaw_action
+        self.disable_effector_on_collision = disable_effector_on_collision
+        self.np_random = np.random.default_rng(seed)
+        self.collisions: list[str] = []
+        self.goals = np.zeros((len(objects), 3))
+        super().__init__(
+            robots="UR5e",
+            controller_configs=arm_controller_config(),
+            gripper_types="SuctionCup",
+            initialization_noise=None,
+            use_camera_obs=False,
+            has_renderer=False,
+            has_offscreen_renderer=has_offscreen_renderer,
+            render_camera=None,
+            control_freq=control_freq,
+            horizon=horizon,
+            ignore_done=False,
+            hard_reset=False,
+            camera_names=camera_names,
+            camera_heights=camera_heights,
+            camera_widths=camera_widths,
+            seed=seed,
+        )
+
+    # --- hooks for subclasses -------------------------------------------------------------------------------
+
+    def _add_fixtures(self, arena: TableArena) -> None:
+        """Add static bodies (a packaging box) to the arena."""
+
+    def _sample_scene(self) -> None:
+        """Choose object poses and goals for a new episode (``self.goals``; place objects with ``_set_object``)."""
+        raise NotImplementedError
+
+    def task_objects(self) -> list[int]:
+        """Indices of the objects that must reach their goals."""
+        raise NotImplementedError
+
+    def expert_plan(self) -> list[int]:
+        """The objects the expert moves, in order, each to ``self.goals[object]``."""
+        raise NotImplementedError
+
+    def stage_label(self, obj: int, stage: int) -> int:
+        """Label of a picking/placing stage of an object (pick/place x object)."""
+        return 2 * obj + stage
+
+    def allowed_supports(self, index: int) -> set[int]:
+        """Geom ids a held object may touch (besides the cup): the table, box floor, the object it stacks on."""
+        return self._table_geoms
+
+    def _after_step(self) -> None:
+        """Task events after a control step (e.g. restocking missing products)."""
+
+    # --- model ------------------------------------------------------------------------------------------------
+
+    @property
+    def _gripper(self) -> SuctionCup:
+        robot = self.robots[0]
+        return robot.gripper[robot.arms[0]]
+
+    def _load_model(self) -> None:
+        super()._load_model()
+        robot = self.robots[0]
+        robot.robot_model.set_base_xpos(robot.robot_model.base_xpos_offset["table"](self.table_full_size[0]))
+        robot.init_qpos = HOME_QPOS.copy()
+        arena = TableArena(table_full_size=self.table_full_size, table_offset=self.table_offset)
+        arena.set_origin([0, 0, 0])
+        # a camera facing the robot over the table (pending area left, box right), for videos
+        arena.worldbody.append(ET.Element("camera", name="cellview", pos="1.35 0 1.85", xyaxes="0 1 0 -0.506 0 0.863"))
+        self._add_fixtures(arena)
+        self.objects = [
+            BoxObject(name=o.name, size=o.half_size, rgba=o.rgba, density=500, friction=(1.0, 0.005, 0.0001))
+            for o in self.cell_objects
+        ]
+        self.model = ManipulationTask(
+            mujoco_arena=arena, mujoco_robots=[robot.robot_model], mujoco_objects=self.objects
+        )
+        cup_body = self._gripper.naming_prefix + "cup"
+        for weld in weld_elements(cup_body, [o.root_body for o in self.objects]):
+            self.model.equality.append(weld)
+
+    def _setup_references(self) -> None:
+        super()._setup_references()
+        model = self.sim.model._model
+        robot = self.robots[0]
+        self._object_bodies = [model.body(o.root_body).id for o in self.objects]
+        self._object_joints = [o.joints[0] for o in self.objects]
+        self._object_geoms = [{model.geom(g).id for g in o.contact_geoms} for o in self.objects]
+        self._geom_owner = {g: i for i, geoms in enumerate(self._object_geoms) for g in geoms}
+        self._cup_geoms = {model.geom(g).id for g in self._gripper.contact_geoms}
+        self._arm_geoms = {model.geom(g).id for g in robot.robot_model.contact_geoms}
+        mount = {model.geom(g).id for g in robot.robot_model.base.contact_geoms} if robot.robot_model.base else set()
+        self._mount_geoms = mount
+        self._table_geoms = {model.geom("table_collision").id}
+        self._arm_qpos = np.asarray(robot._ref_joint_pos_indexes)
+        self._arm_dofs = np.asarray(robot._ref_joint_vel_indexes)
+        self._scratch = mujoco.MjData(model)  # forward kinematics of commanded configurations
+        self._grip_site = model.site(self._gripper.important_sites["grip_site"]).id
+        self.suction = Suction(
+            model, self.sim.data._data, cup_body=self._gripper.naming_prefix + "cup",
+            grip_site=self._gripper.important_sites["grip_site"],
+            object_bodies=[o.root_body for o in self.objects],
+            half_sizes=np.array([o.half_size for o in self.cell_objects]),
+        )
+
+    def _setup_observables(self):
+        observables = super()._setup_observables()
+
+        @sensor(modality="object")
+        def object_pos(obs_cache):
+            return self.object_positions().ravel()
+
+        @sensor(modality="object")
+        def object_yaw(obs_cache):
+            return self.object_yaws()
+
+        @sensor(modality="object")
+        def goal_pos(obs_cache):
+            return self.goals.ravel().copy()
+
+        @sensor(modality="object")
+        def held(obs_cache):
+            return np.array([self.suction.held], dtype=float)
+
+        for s in (object_pos, object_yaw, goal_pos, held):
+            observables[s.__name__] = Observable(name=s.__name__, sensor=s, sampling_rate=self.control_freq)
+        return observables
+
+    # --- episode ----------------------------------------------------------------------------------------------
+
+    def reseed(self, seed: int) -> None:
+        """Fix the scene sampler; the physics is deterministic given the scene and the actions."""
+        self.np_random = np.random.default_rng(seed)
+
+    def _reset_internal(self) -> None:
+        super()._reset_internal()
+        self.sim.data.qpos[self._arm_qpos] = HOME_QPOS
+        self.sim.data.qvel[:] = 0.0
+        self._q_cmd = HOME_QPOS.copy()
+        self.suction.reset()
+        self.collisions = []
+        self._sample_scene()
+        self.sim.forward()
+
+    def _set_object(self, index: int, position: np.ndarray, yaw: float = 0.0) -> None:
+        quat = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])  # MuJoCo wxyz
+        self.sim.data.set_joint_qpos(self._object_joints[index], np.concatenate([position, quat]))
+        self.sim.data.set_joint_qvel(self._object_joints[index], np.zeros(6))
+
+    # --- action -----------------------------------------------------------------------------------------------
+
+    @property
+    def policy_action_dim(self) -> int:
+        """Size of the thesis action; robosuite's own ``action_dim`` stays the 6 arm joint deltas."""
+        return 5 if self.yaw_action else 4
+
+    @property
+    def policy_action_spec(self) -> tuple[np.ndarray, np.ndarray]:
+        high = np.full(self.policy_action_dim, self.max_joint_step)
+        high[-1] = 1.0
+        return -high, high
+
+    def arm_qpos(self) -> np.ndarray:
+        return self.sim.data.qpos[self._arm_qpos].copy()
+
+    def commanded_qpos(self) -> np.ndarray:
+        """The joint targets the servo is tracking (where the arm will be once it settles)."""
+        return self._q_cmd.copy()
+
+    def lip_kinematics(self, arm_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Lip position at arm configuration ``arm_q`` and its 3x3 Jacobian w.r.t. [base, shoulder, elbow], with
+        wrist 1 following the tool-down rule (d wrist1 / d shoulder = d wrist1 / d elbow = -1)."""
+        model, scratch = self.sim.model._model, self._scratch
+        scratch.qpos[:] = self.sim.data.qpos
+        scratch.qpos[self._arm_qpos] = arm_q
+        mujoco.mj_kinematics(model, scratch)
+        mujoco.mj_comPos(model, scratch)
+        jac = np.zeros((3, model.nv))
+        mujoco.mj_jacSite(model, scratch, jac, None, self._grip_site)
+        j = jac[:, self._arm_dofs]
+        effective = np.column_stack([j[:, 0], j[:, 1] - j[:, 3], j[:, 2] - j[:, 3]])
+        return scratch.site_xpos[self._grip_site].copy(), effective
+
+    def joint_targets(self, action: np.ndarray) -> np.ndarray:
+        """Six absolute joint targets for a thesis action (clipped; wrist 1/2 keep the tool pointing down).
+
+        Deltas add to the previous command, not to the measured angles, so the servo's lag does not shrink the
+        commanded motion; the command never leads the arm by more than two steps (a blocked arm does not wind up).
+        """
+        q = np.clip(self._q_cmd, self.arm_qpos() - 2 * self.max_joint_step, self.arm_qpos() + 2 * self.max_joint_step)
+        delta = np.clip(np.asarray(action[:3], dtype=float), -self.max_joint_step, self.max_joint_step)
+        target = q.copy()
+        target[:3] = q[:3] + delta
+        target[3] = -np.pi / 2 - target[1] - target[2]
+        target[4] = -np.pi / 2
+        if self.yaw_action:
+            target[5] = q[5] + np.clip(action[3], -self.max_joint_step, self.max_joint_step)
+        return target
+
+    def step(self, action):
+        action = np.asarray(action, dtype=float)
+        if action.shape != (self.policy_action_dim,):
+            raise ValueError(f"action must have shape ({self.policy_action_dim},), got {action.shape}")
+        self.suction.command(bool(action[-1] > 0))
+        self._step_collisions: list[str] = []
+        self._q_cmd = self.joint_targets(action)
+        low_level = self._q_cmd - self.arm_qpos()
+        obs, reward, done, info = super().step(low_level)
+        return obs, reward, done, info
+
+    def _pre_action(self, action, policy_step=False):
+        super()._pre_action(action, policy_step)
+        self._scan_contacts()
+
+    def _post_action(self, action):
+        self._after_step()
+        if self._step_collisions:
+            self.collisions.extend(self._step_collisions)
+            if self.disable_effector_on_collision:
+                self.suction.disable()
+        reward, done, info = super()._post_action(action)
+        distances = self.goal_distances()
+        info.update(
+            collision=bool(self._step_collisions),
+            collisions=list(self._step_collisions),
+            collided=bool(self.collisions),
+            held=self.suction.held,
+            goal_distances=distances,
+            at_goal=distances <= self.success_threshold,
+            success=self._check_success(),
+        )
+        return reward, done, info
+
+    # --- contacts ---------------------------------------------------------------------------------------------
+
+    def _scan_contacts(self) -> None:
+        data = self.sim.data._data
+        held = self.suction.held
+        for k in range(data.ncon):
+            contact = data.contact[k]
+            pair = (int(contact.geom1), int(contact.geom2))
+            for a, b in (pair, pair[::-1]):
+                kind = self._classify(a, b, held)
+                if kind:
+                    model = self.sim.model._model
+                    event = f"{kind}: {model.geom(a).name} / {model.geom(b).name}"
+                    if event not in self._step_collisions:
+                        self._step_collisions.append(event)
+                    break
+
+    def _classify(self, a: int, b: int, held: int) -> str | None:
+        """A collision name when geom ``a`` touching geom ``b`` is forbidden, else None (checked both ways)."""
+        if a in self._arm_geoms and b not in self._arm_geoms | self._mount_geoms | self._cup_geoms:
+            return "arm"
+        obj_a, obj_b = self._geom_owner.get(a), self._geom_owner.get(b)
+        if a in self._cup_geoms and obj_b is None and b not in self._arm_geoms | self._cup_geoms:
+            return "cup"
+        if a in self._cup_geoms and obj_b is not None and held >= 0 and obj_b != held:
+            return f"cup-{self.cell_objects[obj_b].name}"
+        if obj_a is not None and obj_a == held and b not in self._cup_geoms | self.allowed_supports(held):
+            return f"held-{self.cell_objects[held].name}"
+        if obj_a is not None and obj_b is not None and obj_a < obj_b and held not in (obj_a, obj_b):
+            if b not in self.allowed_supports(obj_a) and a not in self.allowed_supports(obj_b):
+                return f"{self.cell_objects[obj_a].name}-{self.cell_objects[obj_b].name}"
+        return None
+
+    # --- state --------------------------------------------------------------------------------------------------
+
+    def object_positions(self) -> np.ndarray:
+        return np.array([self.sim.data.xpos[b] for b in self._object_bodies])
+
+    def object_yaws(self) -> np.ndarray:
+        quats = np.array([self.sim.data.xquat[b] for b in self._object_bodies])  # wxyz
+        w, x, y, z = quats.T
+        return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+    def eef_position(self) -> np.ndarray:
+        """Position of the cup's lip (r in the thesis)."""
+        return self.sim.data.site_xpos[self._grip_site].copy()
+
+    def goal_distances(self) -> np.ndarray:
+        """|P_obj - P_goal| of every task object (Eq. 3.6 / 4.7)."""
+        idx = self.task_objects()
+        return np.linalg.norm(self.object_positions()[idx] - self.goals[idx], axis=1)
+
+    def reward(self, action=None) -> float:
+        """Sparse reward of Eq. 3.6."""
+        return 0.0 if np.all(self.goal_distances() <= self.success_threshold) else -1.0
+
+    def _check_success(self) -> bool:
+        """Eq. 3.7 / 4.7: every task object within delta_r of its goal, released, and no collision."""
+        return bool(self.reward() == 0.0 and self.suction.held < 0 and not self.collisions)
+
+    def raw_observation(self) -> np.ndarray:
+        """The flat DRL state of 3.3: joint angles, end-effector pose, object poses (x, y, z, yaw), goals."""
+        eef_quat = self.sim.data.xquat[self.sim.model._model.site_bodyid[self._grip_site]]
+        poses = np.column_stack([self.object_positions(), self.object_yaws()])
+        return np.concatenate([self.arm_qpos(), self.eef_position(), eef_quat, poses.ravel(), self.goals.ravel()])

@@ -1,0 +1,174 @@
+"""Demonstration jobs on the robot cells: ``collect`` (expert episodes -> HDF5, with its success rate, speed and the
+stage-segmentation check) and ``render_demo`` (one expert episode rendered off-screen to MP4)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from hrc_lab.data.segmentation import Stage
+from hrc_lab.experiments.context import RunContext
+
+
+def _env_args(ctx: RunContext, env) -> dict:
+    config = ctx.cfg.env
+    return {
+        "env_name": type(env).__name__,
+        "type": 1,  # robomimic's EnvType.ROBOSUITE_TYPE
+        "env_kwargs": {"control_freq": env.control_freq, "horizon": env.horizon},
+        "hrc_lab_env": {"name": ctx.cfg.raw.env.name, **json.loads(json.dumps(dataclasses.asdict(config)))},
+        "stage_label_offset": 1 if type(env).__name__ == "ErrorCorrection" else 0,
+        "seed": ctx.seed,
+    }
+
+
+def record_episode(env, expert):
+    """Run one expert episode from a fresh reset and return it as a :class:`~hrc_lab.data.demos.Demo`."""
+    from hrc_lab.data.demos import OBS_KEYS, Demo
+
+    obs = env.reset()
+    expert.reset()
+    episode = {"scenario": getattr(env, "task", None) or "package_to_order", "plan": list(env.expert_plan())}
+    if getattr(env, "episode", None) is not None:
+        episode |= {
+            "configuration": [list(map(int, pair)) for pair in env.episode.configuration],
+            "human_order": list(env.episode.human_order),
+            "missing": list(env.episode.missing),
+        }
+    columns: dict[str, list] = {k: [] for k in OBS_KEYS}
+    actions, states, rewards, dones, labels, indices, subgoals = [], [], [], [], [], [], []
+    info = {"success": False}
+    while (step := expert.act()) is not None and not env.done:
+        for key in OBS_KEYS:
+            columns[key].append(np.asarray(obs[key], dtype=np.float32))
+        states.append(env.sim.get_state().flatten())
+        obs, reward, done, info = env.step(step.action)
+        actions.append(step.action)
+        rewards.append(reward)
+        dones.append(done)
+        labels.append(step.label)
+        indices.append(step.subgoal_index)
+        subgoals.append(step.subgoal)
+    episode["collisions"] = list(env.collisions)
+    return Demo(
+        obs={k: np.stack(v) for k, v in columns.items()},
+        actions=np.asarray(actions, dtype=np.float32),
+        states=np.asarray(states),
+        rewards=np.asarray(rewards, dtype=np.float32),
+        dones=np.asarray(dones, dtype=bool),
+        stage_labels=np.asarray(labels, dtype=np.int64),
+        subgoal_indices=np.asarray(indices, dtype=np.int64),
+        subgoals=np.asarray(subgoals, dtype=np.float32),
+        success=bool(info.get("success", False)),
+        model_file=env.sim.model.get_xml(),
+        episode=episode,
+    )
+
+
+def env_speed(env, steps: int = 200) -> float:
+    """Control steps per second of the cell alone (arm holding still, suction off), no rendering."""
+    env.reset()
+    hold = np.zeros(env.policy_action_dim)
+    hold[-1] = -1.0
+    start = time.perf_counter()
+    for _ in range(steps):
+        env.step(hold)
+    return steps / (time.perf_counter() - start)
+
+
+def segment(demo, label_of, protocol) -> float:
+    """Add the change-point stages and their sub-goals to the demo; return the step-wise agreement of the
+    detected stages with the expert's own labels."""
+    from hrc_lab.data.segmentation import agreement, stage_labels, stage_subgoals
+
+    bounds, subgoals = stage_subgoals(demo, label_of, protocol.subgoals_per_stage, protocol.subgoal_mode,
+                                      protocol.segmentation_penalty)
+    demo.stage_bounds, demo.stage_subgoals = bounds, subgoals
+    stages = [Stage(*row) for row in bounds]
+    return agreement(stage_labels(stages, len(demo), label_of), demo.stage_labels)
+
+
+def collect(ctx: RunContext) -> dict[str, float]:
+    """Expert demonstrations of one scenario into ``<paths.runs_dir>/data/<scenario>.hdf5`` (or protocol.output)."""
+    from hrc_lab.data.demos import DemoWriter
+    from hrc_lab.env.sim import make_env
+    from hrc_lab.env.sim.expert import ScriptedExpert
+
+    protocol = ctx.cfg.protocol
+    scenario = getattr(ctx.cfg.env, "scenario", ctx.cfg.env.cell)
+    env = make_env(ctx.cfg.env, seed=ctx.seed)
+    expert = ScriptedExpert(env, max_steps_per_subgoal=protocol.max_steps_per_subgoal)
+    speed = env_speed(env)
+    env.reseed(ctx.seed)  # the demonstrations do not depend on the speed probe
+    path = Path(protocol.output or Path(ctx.cfg.raw.paths.runs_dir) / "data" / f"{scenario}_seed{ctx.seed}.hdf5")
+    rows = []
+    start = time.perf_counter()
+    with DemoWriter(path, _env_args(ctx, env)) as writer:
+        for _ in tqdm(range(protocol.episodes), desc=f"collect {scenario}", unit="demo"):
+            demo = record_episode(env, expert)
+            agreement = segment(demo, env.stage_label, protocol)
+            name = writer.add(demo)
+            rows.append({"demo": name, "success": demo.success, "steps": len(demo),
+                         "objects": len(demo.episode["plan"]),
+                         "collisions": ";".join(demo.episode["collisions"]), "agreement": agreement})
+    elapsed = time.perf_counter() - start
+    table = pd.DataFrame(rows)
+    ctx.tracker.log_table(table, "demos")
+    ctx.tracker.log_text(str(path.resolve()), "dataset_path.txt")
+    metrics = {
+        "expert_success_rate": float(table.success.mean()),
+        "steps_per_demo": float(table.steps.mean()),
+        "steps_per_object": float(table.steps.sum() / table.objects.sum()),
+        "segmentation_agreement": float(table.agreement.mean()),
+        "env_steps_per_s": speed,
+        "collect_steps_per_s": float(table.steps.sum() / elapsed),
+        "demos_per_min": protocol.episodes / elapsed * 60,
+        "n_demos": float(protocol.episodes),
+    }
+    return metrics
+
+
+def render_demo(ctx: RunContext) -> dict[str, float]:
+    """One expert episode rendered off-screen to ``<output dir>/<scenario>.mp4`` (and ``protocol.publish_dir``)."""
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    import cv2
+    from hydra.core.hydra_config import HydraConfig
+
+    from hrc_lab.env.sim import make_env
+    from hrc_lab.env.sim.expert import ScriptedExpert
+
+    protocol = ctx.cfg.protocol
+    scenario = getattr(ctx.cfg.env, "scenario", ctx.cfg.env.cell)
+    env = make_env(ctx.cfg.env, seed=ctx.seed, has_offscreen_renderer=True, camera_names=protocol.camera,
+                   camera_heights=protocol.height, camera_widths=protocol.width)
+    expert = ScriptedExpert(env)
+    env.reset()
+    expert.reset()
+    out = Path(HydraConfig.get().runtime.output_dir) / f"{scenario}.mp4"
+    writer = cv2.VideoWriter(str(out), cv2.VideoWriter_fourcc(*"mp4v"), env.control_freq / protocol.frame_skip,
+                             (protocol.width, protocol.height))
+    frames, steps, info = 0, 0, {"success": False}
+    with tqdm(desc=f"render {scenario}", unit="step") as bar:
+        while (step := expert.act()) is not None and not env.done:
+            _, _, _, info = env.step(step.action)
+            if steps % protocol.frame_skip == 0:
+                frame = env.sim.render(camera_name=protocol.camera, width=protocol.width, height=protocol.height)
+                writer.write(cv2.cvtColor(np.flipud(frame), cv2.COLOR_RGB2BGR))  # OpenGL rows are bottom-up
+                frames += 1
+            steps += 1
+            bar.update()
+    writer.release()
+    ctx.tracker.log_artifact(out, "video")
+    if protocol.publish_dir:
+        target = Path(protocol.publish_dir)
+        target.mkdir(parents=True, exist_ok=True)
+        shutil.copy(out, target / out.name)
+    return {"success": float(bool(info.get("success"))), "steps": float(steps), "frames": float(frames)}

@@ -1,0 +1,139 @@
+"""robosuite cells: creation, stepping, seeding, action limits, suction, collisions and the scripted expert."""
+
+import numpy as np
+import pytest
+
+from hrc_lab.env.package_to_order import PackageToOrderSpec
+from hrc_lab.env.settings import ErrorCorrectionConfig, PackageToOrderConfig, SimSettings
+from hrc_lab.env.sim import ErrorCorrection, PackageToOrder, make_env
+from hrc_lab.env.sim.expert import ScriptedExpert, run_episode
+
+SPEC_2OF3 = PackageToOrderSpec(n_objects=3, n_selected=2)
+
+
+@pytest.fixture(scope="module")
+def pto():
+    return PackageToOrder(SPEC_2OF3, case=1, seed=0, horizon=400)
+
+
+@pytest.fixture(scope="module")
+def ec():
+    return ErrorCorrection(task="one_object", case=1, seed=0)
+
+
+def test_reset_builds_the_scene_of_the_task_spec(pto):
+    obs = pto.reset()
+    spec = pto.spec
+    positions = obs["object_pos"].reshape(spec.n_objects, 3)
+    nominal = spec.nominal_pending()
+    assert np.all(np.abs(positions[:, :2] - nominal) <= np.asarray(spec.pick_jitter) + 1e-3)
+    assert np.allclose(positions[:, 2], spec.table_z + spec.product_size / 2, atol=2e-3)
+    structured = pto.structured_observation()
+    assert structured["selected"].sum() == spec.n_selected
+    assert structured["stage"] == 0 and structured["held"] == -1
+    assert len(pto.raw_observation()) == 6 + 3 + 4 + 4 * spec.n_objects + 3 * spec.n_objects
+
+
+def test_step_returns_info_and_sparse_reward(pto):
+    pto.reset()
+    _, reward, done, info = pto.step(np.array([0.0, 0.0, 0.0, -1.0]))
+    assert reward == -1.0 and not done
+    assert {"collision", "collided", "held", "goal_distances", "success"} <= set(info)
+    with pytest.raises(ValueError, match="shape"):
+        pto.step(np.zeros(6))
+
+
+def test_same_seed_same_scene_and_trajectory():
+    a = ErrorCorrection(task="two_object", case=2, seed=3)
+    b = ErrorCorrection(task="two_object", case=2, seed=3)
+    for env in (a, b):
+        env.reset()
+    assert np.allclose(a.object_positions(), b.object_positions())
+    expert_a, expert_b = ScriptedExpert(a), ScriptedExpert(b)
+    for _ in range(15):
+        a.step(expert_a.act().action)
+        b.step(expert_b.act().action)
+    assert np.allclose(a.sim.get_state().flatten(), b.sim.get_state().flatten())
+    c = ErrorCorrection(task="two_object", case=2, seed=4)
+    c.reset()
+    assert not np.allclose(a.goals, c.goals)
+
+
+def test_joint_deltas_are_clipped_to_five_degrees_and_keep_the_tool_down(ec):
+    ec.reset()
+    before = ec.commanded_qpos()
+    ec.step(np.array([np.deg2rad(20), np.deg2rad(-20), 0.0, -1.0]))
+    change = ec.commanded_qpos() - before
+    assert np.allclose(change[:3], np.deg2rad([5, -5, 0]), atol=1e-9)
+    for _ in range(5):
+        ec.step(np.array([0.0, 0.0, 0.0, -1.0]))
+    tool_axis = ec.sim.data.site_xmat[ec._grip_site].reshape(3, 3)[:, 2]
+    assert tool_axis[2] < -0.99  # the tool (site z axis) points down
+
+
+def test_suction_attaches_the_touched_object_and_releases_it(ec):
+    ec.reset()
+    expert = ScriptedExpert(ec)
+    while ec.suction.held < 0:
+        step = expert.act()
+        assert step is not None, "the expert finished without picking"
+        ec.step(step.action)
+    held = ec.suction.held
+    assert held == ec.plan[0]
+    lifted = ec.object_positions()[held, 2]
+    for _ in range(5):
+        ec.step(np.array([0.0, -0.05, 0.0, 1.0]))  # shoulder up: the held part follows the cup
+    assert ec.object_positions()[held, 2] > lifted + 0.02
+    ec.step(np.array([0.0, 0.0, 0.0, -1.0]))
+    assert ec.suction.held == -1
+    for _ in range(10):
+        ec.step(np.array([0.0, 0.0, 0.0, -1.0]))
+    assert ec.object_positions()[held, 2] < lifted  # released: it fell
+
+
+def test_suction_does_nothing_in_the_air(ec):
+    ec.reset()
+    ec.step(np.array([0.0, 0.0, 0.0, 1.0]))
+    assert ec.suction.held == -1
+
+
+def test_driving_the_arm_into_the_table_is_a_collision_and_disables_the_effector():
+    env = ErrorCorrection(task="place", seed=0, disable_effector_on_collision=True)
+    env.reset()
+    info = {}
+    for _ in range(40):
+        _, _, _, info = env.step(np.array([0.0, 0.087, 0.0, 1.0]))  # shoulder down, suction requested
+        if info["collided"]:
+            break
+    assert info["collided"] and env.collisions
+    assert not env.suction.enabled
+    assert not info["success"]
+
+
+@pytest.mark.parametrize(("make", "kwargs"), [
+    (ErrorCorrection, {"task": "one_object", "case": 2}),
+    (ErrorCorrection, {"task": "stack"}),
+    (PackageToOrder, {"spec": SPEC_2OF3, "case": 2}),
+    (PackageToOrder, {"spec": SPEC_2OF3, "n_missing": 1}),
+])
+def test_expert_succeeds_on_short_episodes(make, kwargs):
+    env = make(seed=1, **kwargs)
+    results = [run_episode(env)[:2] for _ in range(2)]
+    assert all(success for success, _ in results), results
+    assert all(steps <= 6 * 30 * len(env.expert_plan()) + len(env.expert_plan()) for _, steps in results)
+
+
+def test_missing_products_are_restocked_once_the_rest_is_packed():
+    env = PackageToOrder(SPEC_2OF3, n_missing=1, seed=2)
+    env.reset()
+    missing = env.episode.missing[0]
+    assert not env.present()[missing] and np.isnan(env.structured_observation()["positions"][missing]).all()
+    success, _, _ = run_episode(env)
+    assert env.restocked and env.present().all() and success
+
+
+def test_make_env_from_configs():
+    env = make_env(PackageToOrderConfig(n_objects=3, n_selected=3, sim=SimSettings(case=2, horizon=50)), seed=0)
+    assert isinstance(env, PackageToOrder) and env.case == 2 and env.horizon == 50
+    env = make_env(ErrorCorrectionConfig(task="two_object", sim=SimSettings(success_threshold=0.08)), seed=0)
+    assert isinstance(env, ErrorCorrection) and env.success_threshold == 0.08
