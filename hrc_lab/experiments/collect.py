@@ -155,20 +155,23 @@ def render_demo(ctx: RunContext) -> dict[str, float]:
     out = Path(HydraConfig.get().runtime.output_dir) / f"{scenario}.mp4"
     writer = cv2.VideoWriter(str(out), cv2.VideoWriter_fourcc(*"mp4v"), env.control_freq / protocol.frame_skip,
                              (protocol.width, protocol.height))
-    frames, steps, info = 0, 0, {"success": False}
+    frames, steps, info = [], 0, {"success": False}
     with tqdm(desc=f"render {scenario}", unit="step") as bar:
         while (step := expert.act()) is not None and not env.done:
             _, _, _, info = env.step(step.action)
             if steps % protocol.frame_skip == 0:
                 frame = env.sim.render(camera_name=protocol.camera, width=protocol.width, height=protocol.height)
-                writer.write(cv2.cvtColor(np.flipud(frame), cv2.COLOR_RGB2BGR))  # OpenGL rows are bottom-up
-                frames += 1
+                frames.append(cv2.cvtColor(np.flipud(frame), cv2.COLOR_RGB2BGR))  # OpenGL rows are bottom-up
+                writer.write(frames[-1])
             steps += 1
             bar.update()
     writer.release()
-    ctx.tracker.log_artifact(out, "video")
-    if protocol.publish_dir:
-        target = Path(protocol.publish_dir)
-        target.mkdir(parents=True, exist_ok=True)
-        shutil.copy(out, target / out.name)
-    return {"success": float(bool(info.get("success"))), "steps": float(steps), "frames": float(frames)}
+    strip = out.with_name(f"{scenario}_strip.jpg")  # four frames side by side, for pages that cannot play video
+    cv2.imwrite(str(strip), np.hstack([frames[i] for i in np.linspace(0, len(frames) - 1, 4).astype(int)]),
+                [cv2.IMWRITE_JPEG_QUALITY, 80])
+    for path in (out, strip):
+        ctx.tracker.log_artifact(path, "video")
+        if protocol.publish_dir:
+            Path(protocol.publish_dir).mkdir(parents=True, exist_ok=True)
+            shutil.copy(path, Path(protocol.publish_dir) / path.name)
+    return {"success": float(bool(info.get("success"))), "steps": float(steps), "frames": float(len(frames))}

@@ -52,7 +52,12 @@ TOPICS = {
         "Robot cells and scripted-expert demonstrations (Ch.3, Ch.4)",
         "robosuite 1.5.1 UR5e with our suction cup on MuJoCo 3.9.0 (`hrc_lab/env/sim/`), not the thesis' CoppeliaSim "
         "UR10; demonstrations come from a scripted expert (`hrc_lab/env/sim/expert.py`), not keyboard teleoperation. "
-        "Videos of one demonstration per cell are in `videos/`.",
+        "One rendered demonstration per cell (`hrc-lab experiment=data/render_demo env=<env> [env.sim.case=2]`) is "
+        "in [videos/](videos/): packing a 4-of-5 order and a 3-of-5 order after a human packed part of it "
+        "(CASE 2), correcting one misplaced cuboid and two cuboids where red occupies blue's place.\n\n"
+        "![4of5](videos/4of5_strip.jpg)\n![3of5 CASE 2](videos/3of5_case2_strip.jpg)\n"
+        "![one object, case 1](videos/one_object_case1_strip.jpg)\n"
+        "![two objects, case 2](videos/two_object_case2_strip.jpg)",
         [("data/collect_ch4", "collect_ch4"), ("data/collect_ch3", "collect_ch3")],
     ),
 }
