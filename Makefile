@@ -1,5 +1,5 @@
 # Shortcuts; each target is one documented command (see README.md).
-.PHONY: install quick test test-all reproduce-ch4 report-ch4 mlflow-ui
+.PHONY: install quick test test-all reproduce-ch4 report-ch4 reproduce-ch5 reproduce-data mlflow-ui
 
 install:
 	bash scripts/install.sh
@@ -22,6 +22,20 @@ reproduce-ch4: install  ## every Ch.4 reasoning table and figure, then the commi
 
 report-ch4:
 	.venv/bin/hrc-lab-report ch4_reasoning
+
+reproduce-ch5: install  ## Fig. 5.7 and the planner columns of Table 5.2, then the committed report
+	.venv/bin/hrc-lab experiment=ch5/fig_5_7 hydra/launcher=joblib
+	.venv/bin/hrc-lab experiment=ch5/table_5_2_planner hydra/launcher=joblib
+	.venv/bin/hrc-lab-report ch5_planner
+
+reproduce-data: install  ## every demonstration set (runs/data/*.hdf5), the videos, then the committed report
+	.venv/bin/hrc-lab experiment=data/collect_ch4 hydra/launcher=joblib
+	.venv/bin/hrc-lab experiment=data/collect_ch3 hydra/launcher=joblib
+	.venv/bin/hrc-lab experiment=data/render_demo env=package_to_order_4of5
+	.venv/bin/hrc-lab experiment=data/render_demo env=package_to_order_3of5 env.sim.case=2
+	.venv/bin/hrc-lab experiment=data/render_demo env=error_correction_one_object_case1
+	.venv/bin/hrc-lab experiment=data/render_demo env=error_correction_two_object_case2
+	.venv/bin/hrc-lab-report data_demonstrations
 
 mlflow-ui:  ## http://127.0.0.1:5000
 	.venv/bin/mlflow ui --backend-store-uri sqlite:///runs/mlflow.db --host 127.0.0.1 --port 5000 --workers 1
