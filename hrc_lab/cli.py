@@ -24,9 +24,17 @@ CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
 log = logging.getLogger("hrc_lab")
 
 
+def method_of(cfg: DictConfig) -> str:
+    """The method a run compares: the reasoning module, else the motion module, else "none"."""
+    for group in ("reasoning", "motion"):
+        name = (cfg.get(group) or {}).get("name", "none")
+        if name != "none":
+            return name
+    return "none"
+
+
 def run_name(cfg: DictConfig, scenario: str) -> str:
-    method = cfg.reasoning.name if cfg.get("reasoning") else "none"
-    return f"{cfg.name}-{method}-{scenario}-seed{cfg.seed}"
+    return f"{cfg.name}-{method_of(cfg)}-{scenario}-seed{cfg.seed}"
 
 
 def sweep_id() -> str:
@@ -56,7 +64,7 @@ def run(cfg: DictConfig) -> dict[str, float]:
         "chapter": str(cfg.chapter),
         "table": str(cfg.table),
         "experiment": str(cfg.name),
-        "method": cfg.reasoning.name if cfg.get("reasoning") else "none",
+        "method": method_of(cfg),
         "cell": validated.env.cell,
         "scenario": scenario,
         "seed": str(cfg.seed),

@@ -31,7 +31,7 @@ TOP_LEVEL_KEYS = {
     "logger",
     "paths",
 }
-UNIMPLEMENTED_GROUPS = ("motion", "perception", "grasp")  # only their `none` option exists so far
+UNIMPLEMENTED_GROUPS = ("perception", "grasp")  # only their `none` option exists so far
 
 
 @dataclass
@@ -83,6 +83,7 @@ class ValidatedConfig:
     raw: DictConfig
     env: Any
     reasoning: Any
+    motion: Any
     protocol: Any
     logger: LoggerConfig
 
@@ -100,6 +101,7 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
     """Check every group of a composed config; raise :class:`ConfigError` naming the first bad key."""
     from hrc_lab.env import ENVS
     from hrc_lab.experiments import PROTOCOLS
+    from hrc_lab.motion import MOTIONS
     from hrc_lab.reasoning import REASONERS
 
     unknown = sorted(set(cfg.keys()) - TOP_LEVEL_KEYS - {"hydra"})
@@ -116,10 +118,12 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
             raise ConfigError(f"{group}.name: '{name}' is not implemented yet (only 'none')")
     _validate_trainer(cfg.trainer)
     reasoning = cfg.get("reasoning")
+    motion = cfg.get("motion")
     return ValidatedConfig(
         raw=cfg,
         env=ENVS.validate(cfg.env),
         reasoning=None if reasoning is None or reasoning.get("name") == "none" else REASONERS.validate(reasoning),
+        motion=None if motion is None or motion.get("name") == "none" else MOTIONS.validate(motion),
         protocol=PROTOCOLS.validate(cfg.protocol, "protocol"),
         logger=LOGGERS.validate(cfg.logger),
     )

@@ -43,11 +43,11 @@ def record_episode(env, expert):
             "human_order": list(env.episode.human_order),
             "missing": list(env.episode.missing),
         }
-    columns: dict[str, list] = {k: [] for k in OBS_KEYS}
+    columns: dict[str, list] = {k: [] for k in OBS_KEYS if k in obs}
     actions, states, rewards, dones, labels, indices, subgoals = [], [], [], [], [], [], []
     info = {"success": False}
     while (step := expert.act()) is not None and not env.done:
-        for key in OBS_KEYS:
+        for key in columns:
             columns[key].append(np.asarray(obs[key], dtype=np.float32))
         states.append(env.sim.get_state().flatten())
         obs, reward, done, info = env.step(step.action)

@@ -163,3 +163,28 @@ class RenderDemoProtocol:
 DATA = "hrc_lab.experiments.collect"
 PROTOCOLS.register("collect", CollectProtocol, f"{DATA}:collect")
 PROTOCOLS.register("render_demo", RenderDemoProtocol, f"{DATA}:render_demo")
+
+
+@dataclass
+class Table42Protocol:
+    """Sub-goal regressors: R^2 by ``cv_folds``-fold CV over demonstrations, then ``trials`` closed-loop trials of
+    the two-level motion module with ground-truth reasoning outputs (CASE 1 and 2 alternating)."""
+
+    demos: int = 20
+    cv_folds: int = 3
+    trials: int = 100
+    max_steps_per_subgoal: int = 30
+    tolerance: float = 0.008  # m: a sub-goal counts as reached within this distance
+
+    def __post_init__(self) -> None:
+        if self.demos < self.cv_folds:
+            raise ValueError(f"protocol.demos must be >= protocol.cv_folds={self.cv_folds}, got {self.demos}")
+        if self.cv_folds < 2:
+            raise ValueError(f"protocol.cv_folds must be >= 2, got {self.cv_folds}")
+        if self.trials < 1:
+            raise ValueError(f"protocol.trials must be >= 1, got {self.trials}")
+        if self.tolerance <= 0:
+            raise ValueError(f"protocol.tolerance must be > 0, got {self.tolerance}")
+
+
+PROTOCOLS.register("ch4_table_4_2", Table42Protocol, "hrc_lab.experiments.ch4_motion:table_4_2")

@@ -17,6 +17,7 @@ COMMANDS = {
     "fig_4_7": "hrc-lab experiment=ch4/fig_4_7 hydra/launcher=joblib",
     "practical": "hrc-lab experiment=ch4/practical hydra/launcher=joblib",
     "fig_4_9": "hrc-lab experiment=ch4/fig_4_9 hydra/launcher=joblib",
+    "table_4_2": "hrc-lab experiment=ch4/table_4_2 hydra/launcher=joblib",
     "fig_5_7": "hrc-lab experiment=ch5/fig_5_7 hydra/launcher=joblib",
     "table_5_2_planner": "hrc-lab experiment=ch5/table_5_2_planner hydra/launcher=joblib",
     "collect_ch4": "hrc-lab experiment=data/collect_ch4 hydra/launcher=joblib",

@@ -42,6 +42,14 @@ TOPICS = {
             ("ch4/fig_4_9", "fig_4_9"),
         ],
     ),
+    "ch4_motion": (
+        "Ch.4 motion module: task-conditioned sub-goal planner and neural dynamic planner vs. VI, GPR, MLP",
+        "Closed-loop trials run in our robosuite UR5e cell (`hrc_lab/env/sim/`), not the thesis' CoppeliaSim UR10; "
+        "demonstrations come from the scripted expert (20 per cell and seed, 3 designed sub-goals per stage). The "
+        "neural dynamic planner sees Δ = s − r in the arm's base frame (radial, tangential, vertical; the thesis does "
+        "not name the frame).",
+        [("ch4/table_4_2", "table_4_2")],
+    ),
     "ch5_planner": (
         "Ch.5 graph semantic planner: goal inference, next object and text plans",
         "Our scenarios come from the assemble-to-order domain (`hrc_lab/env/assemble_to_order.py`) with our own three "
@@ -64,4 +72,4 @@ TOPICS = {
 
 
 def load_sections() -> None:
-    from hrc_lab.report import ch4_reasoning, ch5_planner, data  # noqa: F401  (registration)
+    from hrc_lab.report import ch4_motion, ch4_reasoning, ch5_planner, data  # noqa: F401  (registration)

@@ -357,6 +357,10 @@ class HRCCell(ManipulationEnv):
         w, x, y, z = quats.T
         return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
+    def base_position(self) -> np.ndarray:
+        """Where the arm's base joint axis meets its mount (the origin of the motion module's base frame)."""
+        return self.sim.data.xpos[self.sim.model._model.body(self.robots[0].robot_model.root_body).id].copy()
+
     def eef_position(self) -> np.ndarray:
         """Position of the cup's lip (r in the thesis)."""
         return self.sim.data.site_xpos[self._grip_site].copy()

@@ -12,6 +12,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 
 import numpy as np
+from robosuite.utils.observables import Observable, sensor
 
 from hrc_lab.env.package_to_order import (
     Episode,
@@ -94,6 +95,20 @@ class PackageToOrder(HRCCell):
     def allowed_supports(self, index: int) -> set[int]:
         return self._table_geoms | self._box_floor_geoms
 
+    def _setup_observables(self):
+        observables = super()._setup_observables()
+
+        @sensor(modality="object")
+        def box_pos(obs_cache):
+            return self.box_position()
+
+        observables["box_pos"] = Observable(name="box_pos", sensor=box_pos, sampling_rate=self.control_freq)
+        return observables
+
+    def box_position(self) -> np.ndarray:
+        """Centre of the box floor's top face (the packaging-area position p of Fig. 4.4)."""
+        return self.sim.data.xpos[self._box_body] + np.array([0.0, 0.0, self.spec.box_floor])
+
     # --- episode -----------------------------------------------------------------------------------------------
 
     def _sample_scene(self) -> None:
@@ -158,7 +173,7 @@ class PackageToOrder(HRCCell):
             "selected": selected,
             "packed": packed,
             "goal_slot": self.episode.goal_slot.copy(),
-            "box_position": self.sim.data.xpos[self._box_body].copy(),
+            "box_position": self.box_position(),
             "slot_positions": self.episode.slot_positions.copy(),
             "eef": self.eef_position(),
             "stage": int(held >= 0),

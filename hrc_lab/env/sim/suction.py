@@ -50,11 +50,11 @@ class Suction:
     """Attach/release objects by toggling their weld to the cup.
 
     An object can be attached when the lip (``grip_site``) is within ``reach`` of the object's top face and inside
-    its footprint: the cup has to touch the part, as a real suction cup does.
+    its footprint (the bellows give 1.5 cm of compliance): the cup has to touch the part, as a real one does.
     """
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, cup_body: str, grip_site: str,
-                 object_bodies: list[str], half_sizes: np.ndarray, reach: float = 0.012) -> None:
+                 object_bodies: list[str], half_sizes: np.ndarray, reach: float = 0.015) -> None:
         self.model, self.data = model, data
         self.cup = model.body(cup_body).id
         self.site = model.site(grip_site).id

@@ -1,0 +1,59 @@
+"""Config schemas of the motion module's sub-goal planners (light: no torch import), and their registry."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from hrc_lab.registry import Registry
+
+MOTIONS = Registry("motion")
+
+
+@dataclass
+class NDPConfig:
+    """Neural dynamic planner (Fig. 3.3, Eq. 3.5): three ReLU layers from Delta = s - r to joint actions."""
+
+    hidden: int = 64
+    mode: str = "regression"  # "regression": joint deltas (MSE); "direction": -1/0/1 per joint (3.3)
+    lr: float = 1e-3
+    steps: int = 3000  # gradient steps
+    batch_size: int = 128
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("regression", "direction"):
+            raise ValueError(f"motion.ndp.mode must be 'regression' or 'direction', got '{self.mode}'")
+        for key in ("hidden", "lr", "steps", "batch_size"):
+            if getattr(self, key) <= 0:
+                raise ValueError(f"motion.ndp.{key} must be > 0, got {getattr(self, key)}")
+
+
+@dataclass
+class SubgoalConfig:
+    """A sub-goal regressor: ``kind`` vi (Fig. 3.2, Eq. 3.1-3.4), mlp (deterministic) or gpr (scikit-learn RBF);
+    ``use_labels`` False is the thesis' VI baseline without task labels."""
+
+    kind: str = "vi"
+    use_labels: bool = True
+    hidden: int = 64
+    lr: float = 1e-3  # thesis 4.4.2.1
+    steps: int = 3000
+    batch_size: int = 64
+    kl_weight: float = 1e-3  # weight of D_kl[q(z) || N(0, 1)] (Eq. 3.3) on standardised sub-goals
+    likelihood_std: float = 0.1  # std of p(s | z) in standardised units (Eq. 3.4)
+    gpr_max_points: int = 1500  # GPR is O(n^3): fit on a random subset of this size
+    ndp: NDPConfig = field(default_factory=NDPConfig)
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("vi", "mlp", "gpr"):
+            raise ValueError(f"motion.kind must be 'vi', 'mlp' or 'gpr', got '{self.kind}'")
+        for key in ("hidden", "lr", "steps", "batch_size", "likelihood_std", "gpr_max_points"):
+            if getattr(self, key) <= 0:
+                raise ValueError(f"motion.{key} must be > 0, got {getattr(self, key)}")
+        if self.kl_weight < 0:
+            raise ValueError(f"motion.kl_weight must be >= 0, got {self.kl_weight}")
+
+
+MOTIONS.register("tc_vi", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
+MOTIONS.register("vi", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
+MOTIONS.register("mlp", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
+MOTIONS.register("gpr", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")

@@ -1,0 +1,154 @@
+"""Sub-goal planners and the neural dynamic planner behind one numpy interface, with standardised inputs and
+targets (statistics of the training set)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from hrc_lab.motion.configs import NDPConfig, SubgoalConfig
+from hrc_lab.motion.networks import FullObservationActor, NeuralDynamicPlanner, TaskConditionedVI, variational_loss
+from hrc_lab.motion.training import fit
+
+
+class Standardiser:
+    def __init__(self, data: np.ndarray) -> None:
+        self.mean = data.mean(0)
+        self.std = data.std(0) + 1e-6
+
+    def __call__(self, data: np.ndarray) -> np.ndarray:
+        return (data - self.mean) / self.std
+
+    def inverse(self, data: np.ndarray) -> np.ndarray:
+        return data * self.std + self.mean
+
+
+def _tensor(array: np.ndarray) -> torch.Tensor:
+    return torch.as_tensor(np.asarray(array), dtype=torch.float32)
+
+
+class SubgoalPlanner:
+    """s = f(x, l): ``fit`` on (observation, label index, sub-goal) triples, ``predict`` the sub-goal mean and std."""
+
+    def __init__(self, config: SubgoalConfig, n_labels: int, seed: int = 0) -> None:
+        self.config = config
+        self.n_labels = n_labels
+        self.seed = seed
+
+    def _inputs(self, x: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.x_scale(x), np.eye(self.n_labels)[labels]
+
+    def fit(self, x: np.ndarray, labels: np.ndarray, subgoals: np.ndarray,
+            trainer_factory: Callable | None = None) -> SubgoalPlanner:
+        cfg = self.config
+        self.x_scale, self.s_scale = Standardiser(x), Standardiser(subgoals)
+        xs, onehot = self._inputs(x, labels)
+        target = self.s_scale(subgoals)
+        if cfg.kind == "gpr":
+            from sklearn.gaussian_process import GaussianProcessRegressor
+            from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
+
+            rng = np.random.default_rng(self.seed)
+            keep = rng.permutation(len(xs))[: cfg.gpr_max_points]
+            features = np.hstack([xs, onehot]) if cfg.use_labels else xs
+            kernel = ConstantKernel() * RBF(length_scale=np.ones(features.shape[1])) + WhiteKernel(1e-3)
+            self.gpr = GaussianProcessRegressor(kernel, normalize_y=False, random_state=self.seed)
+            self.gpr.fit(features[keep], target[keep])
+            return self
+        torch.manual_seed(self.seed)
+        self.network = TaskConditionedVI(x.shape[1], self.n_labels, cfg.hidden, subgoals.shape[1], cfg.use_labels,
+                                         stochastic=cfg.kind == "vi")
+        if cfg.kind == "vi":
+            def objective(net, xb, lb, sb):
+                mean, std = net(xb, lb)
+                loss, nll, kl = variational_loss(mean, std, sb, cfg.likelihood_std, cfg.kl_weight)
+                return loss, {"train_nll": nll, "train_kl": kl}
+        else:
+            def objective(net, xb, lb, sb):
+                mean, _ = net(xb, lb)
+                return F.mse_loss(mean, sb), {}
+        fit(self.network, objective, [_tensor(xs), _tensor(onehot), _tensor(target)], cfg.lr, cfg.steps,
+            cfg.batch_size, trainer_factory)
+        return self
+
+    def predict(self, x: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        x = np.atleast_2d(x)
+        labels = np.atleast_1d(labels)
+        xs, onehot = self._inputs(x, labels)
+        if self.config.kind == "gpr":
+            features = np.hstack([xs, onehot]) if self.config.use_labels else xs
+            mean, std = self.gpr.predict(features, return_std=True)
+            std = np.broadcast_to(np.atleast_2d(std).reshape(len(x), -1), mean.shape)
+        else:
+            with torch.no_grad():
+                mean, std = (t.numpy() for t in self.network(_tensor(xs), _tensor(onehot)))
+        return self.s_scale.inverse(mean), std * self.s_scale.std
+
+
+def base_frame(delta: np.ndarray, r: np.ndarray, base: np.ndarray) -> np.ndarray:
+    """Delta = s - r expressed along (radial, tangential, vertical) directions of the arm's base at the lip's
+    azimuth: the frame in which the base joint moves the lip tangentially and shoulder/elbow move it radially and
+    vertically, whatever the base angle."""
+    azimuth = np.arctan2(r[:, 1] - base[1], r[:, 0] - base[0])
+    c, s = np.cos(azimuth), np.sin(azimuth)
+    return np.stack([c * delta[:, 0] + s * delta[:, 1], -s * delta[:, 0] + c * delta[:, 1], delta[:, 2]], axis=1)
+
+
+class DynamicPlanner:
+    """The neural dynamic planner (Eq. 3.5) or, with ``full_observation``, the actor pi(r, s) of Fig. 3.10.
+
+    The planner sees only Delta = s - r, expressed in the base frame of :func:`base_frame` (``base`` = the arm's
+    base position; the thesis does not name the frame of Delta, and in a fixed world frame the same Delta needs
+    different joint motions at different base angles). The full-observation actor sees r and s in the world frame.
+    """
+
+    def __init__(self, config: NDPConfig, max_step: float, base: np.ndarray, full_observation: bool = False,
+                 seed: int = 0) -> None:
+        self.config = config
+        self.max_step = max_step
+        self.base = np.asarray(base, dtype=float)
+        self.full_observation = full_observation
+        self.seed = seed
+
+    def _features(self, r: np.ndarray, s: np.ndarray) -> np.ndarray:
+        return np.hstack([r, s]) if self.full_observation else base_frame(s - r, r, self.base)
+
+    def fit(self, r: np.ndarray, s: np.ndarray, actions: np.ndarray, trainer_factory: Callable) -> DynamicPlanner:
+        cfg = self.config
+        torch.manual_seed(self.seed)
+        features = self._features(r, s)
+        self.scale = Standardiser(features)
+        inputs = _tensor(self.scale(features))
+        if self.full_observation:
+            self.network = FullObservationActor(cfg.hidden)
+        else:
+            self.network = NeuralDynamicPlanner(cfg.hidden, directions=cfg.mode == "direction")
+        if cfg.mode == "direction" and not self.full_observation:
+            target = torch.as_tensor(np.sign(actions) * (np.abs(actions) > 0.2 * self.max_step) + 1, dtype=torch.long)
+
+            def objective(net, xb, yb):
+                logits = net(xb)
+                return F.cross_entropy(logits.reshape(-1, 3), yb.reshape(-1)), {}
+        else:
+            target = _tensor(actions / self.max_step)
+
+            def objective(net, xb, yb):
+                return 0.5 * ((net(xb) - yb) ** 2).sum(-1).mean(), {}  # Eq. 3.5
+        fit(self.network, objective, [inputs, target], cfg.lr, cfg.steps, cfg.batch_size, trainer_factory)
+        return self
+
+    def act(self, r: np.ndarray, s: np.ndarray) -> np.ndarray:
+        """Joint deltas [base, shoulder, elbow] in radians, within the 5-degree limit."""
+        inputs = _tensor(self.scale(self._features(np.atleast_2d(r), np.atleast_2d(s))))
+        with torch.no_grad():
+            out = self.network(inputs)[0]
+        if self.config.mode == "direction" and not self.full_observation:
+            return (out.argmax(-1).numpy() - 1.0) * self.max_step
+        return np.clip(out.numpy(), -1.0, 1.0) * self.max_step
+
+
+def build_subgoal_planner(config: SubgoalConfig, n_labels: int, seed: int = 0) -> SubgoalPlanner:
+    return SubgoalPlanner(config, n_labels, seed)

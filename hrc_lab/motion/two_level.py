@@ -1,0 +1,180 @@
+"""Training pairs from demonstrations and the closed-loop two-level execution (thesis 3.2, 4.2.2).
+
+The sub-goal planner proposes a sub-goal from the observation and the task label; the neural dynamic planner
+then acts for at most ``max_steps`` control steps (30 in the thesis) until the cup's lip is within ``tolerance``
+of it; the next sub-goal is planned from where the arm ended. Suction is on in a picking stage from its second
+sub-goal on (the cup grips the first top face its lip touches; during the first sub-goal the lip is still leaving
+the part it just released) and through the placing stage, and off once the last placing sub-goal is done.
+
+Labels: Ch.4 (Fig. 4.4) 0 = picking (l_pi), 1 + slot = placing into goal slot; the feature beside r is the
+selected product's position when picking and the box position p when placing. Ch.3 (3.3): the stage label
+0 pick blue, 1 place blue, 2 pick red, 3 place red; the observation is the three objects' positions and r.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hrc_lab.env.sim.cell import PICK, PLACE
+
+RELEASE = np.array([0.0, 0.0, 0.0, -1.0])
+
+
+# --- training pairs ---------------------------------------------------------------------------------------------
+
+
+@dataclass
+class SubgoalPairs:
+    x: np.ndarray  # (N, d) observations
+    labels: np.ndarray  # (N,) task label indices
+    subgoals: np.ndarray  # (N, 3)
+    groups: np.ndarray  # (N,) demo index, for grouped cross-validation
+
+
+def package_pairs(demos) -> SubgoalPairs:
+    """Ch.4 pairs (Fig. 4.4): one per designed sub-goal, x = [o_selected or p, r at the sub-goal's start]."""
+    xs, labels, targets, groups = [], [], [], []
+    for k, demo in enumerate(demos):
+        slot_of = {p: s for p, s in demo.episode["configuration"]}
+        positions = demo.obs["object_pos"].reshape(len(demo), -1, 3)
+        for label in np.unique(demo.stage_labels):
+            obj, stage = divmod(int(label), 2)
+            steps = np.flatnonzero(demo.stage_labels == label)
+            feature = positions[steps[0], obj] if stage == PICK else demo.obs["box_pos"][steps[0]]
+            for i in range(3):
+                at = steps[demo.subgoal_indices[steps] == i]
+                if len(at) == 0:
+                    continue
+                xs.append(np.concatenate([feature, demo.obs["robot0_eef_pos"][at[0]]]))
+                labels.append(0 if stage == PICK else 1 + slot_of[obj])
+                targets.append(demo.subgoals[at[0]])
+                groups.append(k)
+    return SubgoalPairs(np.array(xs), np.array(labels), np.array(targets), np.array(groups))
+
+
+def correction_pairs(demos) -> SubgoalPairs:
+    """Ch.3 pairs (3.3): per change-point stage, its re-sampled sub-goals; x = [3 object positions at the stage's
+    start, r at the previous sub-goal (the stage's start for the first)], label from the detected stage."""
+    xs, labels, targets, groups = [], [], [], []
+    for k, demo in enumerate(demos):
+        for (obj, stage, start, _), points in zip(demo.stage_bounds, demo.stage_subgoals):
+            objects = demo.obs["object_pos"][start]
+            previous = demo.obs["robot0_eef_pos"][start]
+            for point in points:
+                xs.append(np.concatenate([objects, previous]))
+                labels.append(2 * (obj - 1) + stage)
+                targets.append(point)
+                groups.append(k)
+                previous = point
+    return SubgoalPairs(np.array(xs), np.array(labels), np.array(targets), np.array(groups))
+
+
+def dynamics_pairs(demos) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(r_t, s_t, a_t) of every demonstrated step: the lip, the designed sub-goal the expert was heading for, and
+    its [base, shoulder, elbow] deltas (Delta = s - r, Eq. 3.5)."""
+    r = np.concatenate([d.obs["robot0_eef_pos"] for d in demos])
+    s = np.concatenate([d.subgoals for d in demos])
+    a = np.concatenate([d.actions[:, :3] for d in demos])
+    return r, s, a
+
+
+def classifier_pairs(demos) -> tuple[np.ndarray, np.ndarray]:
+    """Every step's raw observation (objects, r) and the expert's stage label, for c(x)."""
+    x = np.concatenate([np.hstack([d.obs["object_pos"], d.obs["robot0_eef_pos"]]) for d in demos])
+    return x, np.concatenate([d.stage_labels for d in demos])
+
+
+# --- execution ----------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Rollout:
+    success: bool = False
+    steps: int = 0
+    planning_ms: list[float] = field(default_factory=list)
+    object_steps: dict[int, int] = field(default_factory=dict)  # object -> steps spent on it
+    failure: str = ""
+
+
+def reach(env, ndp, subgoal: np.ndarray, suction: bool, max_steps: int, tolerance: float) -> tuple[int, bool]:
+    """Act with the dynamic planner until the lip is within ``tolerance`` of ``subgoal`` (or ``max_steps``).
+    Returns (steps taken, still fine), where not fine means a collision or the horizon."""
+    command = 1.0 if suction else -1.0
+    for step in range(max_steps):
+        r = env.eef_position()
+        if np.linalg.norm(subgoal - r) < tolerance:
+            return step, True
+        env.step(np.array([*ndp.act(r, subgoal), command]))
+        if env.collisions or env.done:
+            return step + 1, False
+    return max_steps, True
+
+
+def plan(planner, x: np.ndarray, label: int, timings: list[float]) -> np.ndarray:
+    start = time.perf_counter()
+    mean, _ = planner.predict(x[None], np.array([label]))
+    timings.append((time.perf_counter() - start) * 1e3)
+    return mean[0]
+
+
+def run_package(env, planner, ndp, n_subgoals: int = 3, max_steps: int = 30, tolerance: float = 0.008) -> Rollout:
+    """One package-to-order trial with ground-truth reasoning outputs (the expert's next product and its slot)."""
+    env.reset()
+    out = Rollout()
+    for obj in env.expert_plan():
+        slot = int(env.episode.goal_slot[obj])
+        before = out.steps
+        for stage in (PICK, PLACE):
+            for i in range(n_subgoals):
+                feature = env.object_positions()[obj] if stage == PICK else env.box_position()
+                subgoal = plan(planner, np.concatenate([feature, env.eef_position()]),
+                               0 if stage == PICK else 1 + slot, out.planning_ms)
+                steps, fine = reach(env, ndp, subgoal, stage == PLACE or i > 0, max_steps, tolerance)
+                out.steps += steps
+                if not fine:
+                    out.failure = "collision" if env.collisions else "horizon"
+                    return out
+            if stage == PICK and env.suction.held != obj:
+                out.failure = "pick"
+                return out
+        env.step(RELEASE)
+        out.steps += 1
+        out.object_steps[obj] = out.steps - before
+        if np.linalg.norm(env.object_positions()[obj] - env.goals[obj]) > env.success_threshold:
+            out.failure = "placement"  # the trial has failed (Eq. 4.7); stop here
+            return out
+    out.success = bool(env._check_success())
+    out.failure = "" if out.success else "placement"
+    return out
+
+
+def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps: int = 30,
+                   tolerance: float = 0.008) -> tuple[Rollout, np.ndarray]:
+    """One error-correction trial: for as many stages as the case needs, the classifier labels the stage from the
+    raw observation, the planner proposes its sub-goals. Returns the rollout and the final object positions."""
+    env.reset()
+    out = Rollout()
+    stages = 2 * len(env.expert_plan())
+    for _ in range(stages):
+        x = np.concatenate([env.object_positions().ravel(), env.eef_position()])
+        label = int(classifier(x[None])[0])
+        obj, stage = divmod(label, 2)
+        obj += 1  # labels count blue (1) and red (2); green is never moved
+        objects = env.object_positions().ravel()
+        before = out.steps
+        for i in range(n_subgoals):
+            subgoal = plan(planner, np.concatenate([objects, env.eef_position()]), label, out.planning_ms)
+            steps, fine = reach(env, ndp, subgoal, stage == PLACE or i > 0, max_steps, tolerance)
+            out.steps += steps
+            if not fine:
+                out.failure = "collision" if env.collisions else "horizon"
+                return out, env.object_positions()
+        if stage == PLACE:
+            env.step(RELEASE)
+            out.steps += 1
+        out.object_steps[obj] = out.object_steps.get(obj, 0) + out.steps - before
+    out.success = bool(env._check_success())
+    return out, env.object_positions()
