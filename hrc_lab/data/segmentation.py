@@ -41,8 +41,15 @@ def moving_segments(trajectory: np.ndarray, penalty: float = 1e-4, min_speed: fl
     return segments
 
 
-def detect_stages(object_positions: np.ndarray, penalty: float = 1e-4) -> list[Stage]:
-    """Picking and placing stages of every moved object, in time order, from (T, m, 3) object positions."""
+def detect_stages(object_positions: np.ndarray, penalty: float = 1e-4, pick_ends: str = "lift") -> list[Stage]:
+    """Picking and placing stages of every moved object, in time order, from (T, m, 3) object positions.
+
+    ``pick_ends="lift"``: picking ends when the lift ends (the designed sub-goals of 4.3 put "grab and lift" in
+    picking; the expert's labels follow it). ``pick_ends="contact"``: picking ends when the object starts to move,
+    i.e. at the grip (a segmentation "according to objects' position" alone, 3.3).
+    """
+    if pick_ends not in ("lift", "contact"):
+        raise ValueError(f"pick_ends must be 'lift' or 'contact', got '{pick_ends}'")
     handled = []
     for obj in range(object_positions.shape[1]):
         segments = moving_segments(object_positions[:, obj], penalty)
@@ -53,6 +60,8 @@ def detect_stages(object_positions: np.ndarray, penalty: float = 1e-4) -> list[S
         lift_end, place_end = segments[0][1], segments[-1][1]
         if len(segments) == 1:  # one straight motion: no lift visible; split it in the middle
             lift_end = (segments[0][0] + segments[0][1]) // 2
+        if pick_ends == "contact":
+            lift_end = max(segments[0][0], previous_end + 1)
         stages.append(Stage(obj, PICK, previous_end, lift_end))
         stages.append(Stage(obj, PLACE, lift_end, place_end))
         previous_end = place_end
@@ -85,13 +94,15 @@ def stage_subgoals(demo, label_of: Callable[[int, int], int], k: int, mode: str 
                    penalty: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
     """Segment a demo into stages and give every stage ``k`` sub-goals.
 
-    ``mode="resample"`` (Ch.3): the end-effector path of each detected stage re-sampled to ``k`` points.
+    ``mode="resample"`` (Ch.3): stages split where the object starts to move (picking ends at the grip, so its
+    last sub-goal is the part's top face), each stage's end-effector path re-sampled to ``k`` points.
     ``mode="designed"`` (Ch.4, k = 3): the designed sub-goals the expert recorded for that stage.
     Returns ``bounds`` (S, 4) rows of (object, stage, start, end) and ``subgoals`` (S, k, 3).
     """
     if mode not in ("resample", "designed"):
         raise ValueError(f"mode must be 'resample' or 'designed', got '{mode}'")
-    stages = detect_stages(demo.obs["object_pos"].reshape(len(demo), -1, 3), penalty)
+    pick_ends = "contact" if mode == "resample" else "lift"
+    stages = detect_stages(demo.obs["object_pos"].reshape(len(demo), -1, 3), penalty, pick_ends)
     eef = demo.obs["robot0_eef_pos"]
     bounds, points = [], []
     for s in stages:

@@ -18,7 +18,8 @@ EC_TASKS = ("one_object", "two_object", "place", "stack")
 class SimSettings:
     """The robot cell: control rate, horizon, success threshold, action limits and the scenario case."""
 
-    control_freq: int = 20  # Hz; one action per 50 ms (25 MuJoCo substeps of 2 ms)
+    control_freq: int = 20  # Hz; one action per 50 ms
+    physics_timestep: float = 0.005  # s per MuJoCo step (10 per action at 20 Hz)
     horizon: int = 1000  # control steps per episode
     success_threshold: float = 0.06  # delta_r of Eq. 3.6 / 4.7, m
     max_joint_step_deg: float = 5.0  # per-step joint delta limit (thesis: -5 ... 5 deg)
@@ -30,6 +31,12 @@ class SimSettings:
     def __post_init__(self) -> None:
         if self.control_freq < 1:
             raise ValueError(f"env.sim.control_freq must be >= 1, got {self.control_freq}")
+        substeps = 1.0 / (self.control_freq * self.physics_timestep) if self.physics_timestep > 0 else 0.0
+        if not 0 < self.physics_timestep <= 0.01 or abs(substeps - round(substeps)) > 1e-6:
+            raise ValueError(
+                f"env.sim.physics_timestep must be in (0, 0.01] s and divide the control period "
+                f"1/{self.control_freq} s, got {self.physics_timestep}"
+            )
         if self.horizon < 1:
             raise ValueError(f"env.sim.horizon must be >= 1, got {self.horizon}")
         if not 0 < self.success_threshold < 0.5:

@@ -14,7 +14,6 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from hrc_lab.data.segmentation import Stage
 from hrc_lab.experiments.context import RunContext
 
 
@@ -86,13 +85,12 @@ def env_speed(env, steps: int = 200) -> float:
 
 def segment(demo, label_of, protocol) -> float:
     """Add the change-point stages and their sub-goals to the demo; return the step-wise agreement of the
-    detected stages with the expert's own labels."""
-    from hrc_lab.data.segmentation import agreement, stage_labels, stage_subgoals
+    detected stages (picking ending with the lift, as the expert labels it) with the expert's own labels."""
+    from hrc_lab.data.segmentation import agreement, detect_stages, stage_labels, stage_subgoals
 
-    bounds, subgoals = stage_subgoals(demo, label_of, protocol.subgoals_per_stage, protocol.subgoal_mode,
-                                      protocol.segmentation_penalty)
-    demo.stage_bounds, demo.stage_subgoals = bounds, subgoals
-    stages = [Stage(*row) for row in bounds]
+    demo.stage_bounds, demo.stage_subgoals = stage_subgoals(
+        demo, label_of, protocol.subgoals_per_stage, protocol.subgoal_mode, protocol.segmentation_penalty)
+    stages = detect_stages(demo.obs["object_pos"].reshape(len(demo), -1, 3), protocol.segmentation_penalty)
     return agreement(stage_labels(stages, len(demo), label_of), demo.stage_labels)
 
 

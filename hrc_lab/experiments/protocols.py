@@ -188,3 +188,50 @@ class Table42Protocol:
 
 
 PROTOCOLS.register("ch4_table_4_2", Table42Protocol, "hrc_lab.experiments.ch4_motion:table_4_2")
+
+
+@dataclass
+class Table31Protocol:
+    """Two-level planner on the error-correction cases: ``demos`` expert demonstrations (thesis: 20 per case),
+    ``subgoals_per_stage`` re-sampled sub-goals per stage, ``trials`` closed-loop trials scored per object at
+    each threshold in ``thresholds`` (delta_r)."""
+
+    demos: int = 20
+    trials: int = 50
+    subgoals_per_stage: int = 5
+    thresholds: list[float] = field(default_factory=lambda: [0.08, 0.06])
+    max_steps_per_subgoal: int = 30
+    tolerance: float = 0.008
+    segmentation_penalty: float = 1e-3
+
+    def __post_init__(self) -> None:
+        if self.demos < 1 or self.trials < 1:
+            raise ValueError(f"protocol.demos and protocol.trials must be >= 1, got {self.demos}, {self.trials}")
+        if not self.thresholds or any(t <= 0 for t in self.thresholds):
+            raise ValueError(f"protocol.thresholds must be positive distances, got {self.thresholds}")
+
+
+@dataclass
+class Fig310Protocol:
+    """Neural dynamic planner vs. full-observation actor: ``trials`` random sub-goals in the box
+    [``subgoal_low``, ``subgoal_high``] (m), ``steps`` actions each from the initial pose."""
+
+    demos_per_case: int = 20
+    trials: int = 20
+    steps: int = 30
+    converged_m: float = 0.02
+    subgoal_low: list[float] = field(default_factory=lambda: [-0.15, -0.30, 0.86])
+    subgoal_high: list[float] = field(default_factory=lambda: [0.15, 0.30, 1.05])
+    subgoals_per_stage: int = 5
+    segmentation_penalty: float = 1e-3
+
+    def __post_init__(self) -> None:
+        if len(self.subgoal_low) != 3 or len(self.subgoal_high) != 3:
+            raise ValueError("protocol.subgoal_low and protocol.subgoal_high must be [x, y, z]")
+        if any(lo >= hi for lo, hi in zip(self.subgoal_low, self.subgoal_high)):
+            raise ValueError(f"protocol.subgoal_low must be below subgoal_high, got {self.subgoal_low}")
+
+
+CH3 = "hrc_lab.experiments.ch3_motion"
+PROTOCOLS.register("ch3_table_3_1", Table31Protocol, f"{CH3}:table_3_1")
+PROTOCOLS.register("ch3_fig_3_10", Fig310Protocol, f"{CH3}:fig_3_10")

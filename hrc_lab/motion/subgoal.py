@@ -152,3 +152,31 @@ class DynamicPlanner:
 
 def build_subgoal_planner(config: SubgoalConfig, n_labels: int, seed: int = 0) -> SubgoalPlanner:
     return SubgoalPlanner(config, n_labels, seed)
+
+
+class StageClassifier:
+    """c(x): the task (stage) label from the raw observation (3.2.1), an MLP trained with cross-entropy."""
+
+    def __init__(self, n_labels: int, hidden: int = 64, lr: float = 1e-3, steps: int = 2000, batch_size: int = 128,
+                 seed: int = 0) -> None:
+        self.n_labels, self.hidden, self.lr, self.steps, self.batch_size, self.seed = (
+            n_labels, hidden, lr, steps, batch_size, seed)
+
+    def fit(self, x: np.ndarray, labels: np.ndarray, trainer_factory: Callable) -> StageClassifier:
+        from hrc_lab.motion.networks import TaskClassifier
+
+        torch.manual_seed(self.seed)
+        self.scale = Standardiser(x)
+        self.network = TaskClassifier(x.shape[1], self.n_labels, self.hidden)
+
+        def objective(net, xb, yb):
+            logits = net(xb)
+            return F.cross_entropy(logits, yb), {"train_acc": (logits.argmax(-1) == yb).float().mean()}
+
+        fit(self.network, objective, [_tensor(self.scale(x)), torch.as_tensor(labels, dtype=torch.long)], self.lr,
+            self.steps, self.batch_size, trainer_factory)
+        return self
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return self.network(_tensor(self.scale(np.atleast_2d(x)))).argmax(-1).numpy()

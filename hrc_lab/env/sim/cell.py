@@ -1,5 +1,8 @@
 """The robot cell shared by the Ch.3 and Ch.4 environments: a UR5e with a suction cup at a table with cuboids.
 
+Physics: MuJoCo steps of ``physics_timestep`` (5 ms; robosuite's default 2 ms makes its Python controller loop
+the bottleneck without changing what the experiments measure), ``1 / (control_freq * physics_timestep)`` per action.
+
 Action (thesis 3.3 and 4.3), one control step at ``control_freq`` Hz:
     ``[dq_base, dq_shoulder, dq_elbow, suction]`` (+ ``dq_wrist3`` before suction with ``yaw_action=True``), joint
     deltas in radians clipped to +-``max_joint_step`` (5 deg); suction > 0 means on. Wrist 1 and wrist 2 are not
@@ -23,6 +26,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from robosuite import macros
 from robosuite.controllers import load_composite_controller_config, load_part_controller_config
 from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
 from robosuite.models.arenas import TableArena
@@ -76,6 +80,7 @@ class HRCCell(ManipulationEnv):
         camera_names: str | list[str] = "frontview",
         camera_heights: int = 240,
         camera_widths: int = 320,
+        physics_timestep: float = 0.005,
     ) -> None:
         self.cell_objects = objects
         self.table_full_size = table_full_size
@@ -87,24 +92,29 @@ class HRCCell(ManipulationEnv):
         self.np_random = np.random.default_rng(seed)
         self.collisions: list[str] = []
         self.goals = np.zeros((len(objects), 3))
-        super().__init__(
-            robots="UR5e",
-            controller_configs=arm_controller_config(),
-            gripper_types="SuctionCup",
-            initialization_noise=None,
-            use_camera_obs=False,
-            has_renderer=False,
-            has_offscreen_renderer=has_offscreen_renderer,
-            render_camera=None,
-            control_freq=control_freq,
-            horizon=horizon,
-            ignore_done=False,
-            hard_reset=False,
-            camera_names=camera_names,
-            camera_heights=camera_heights,
-            camera_widths=camera_widths,
-            seed=seed,
-        )
+        # robosuite reads its physics step from a module global while it builds the model and controllers
+        default_timestep, macros.SIMULATION_TIMESTEP = macros.SIMULATION_TIMESTEP, physics_timestep
+        try:
+            super().__init__(
+                robots="UR5e",
+                controller_configs=arm_controller_config(),
+                gripper_types="SuctionCup",
+                initialization_noise=None,
+                use_camera_obs=False,
+                has_renderer=False,
+                has_offscreen_renderer=has_offscreen_renderer,
+                render_camera=None,
+                control_freq=control_freq,
+                horizon=horizon,
+                ignore_done=False,
+                hard_reset=False,
+                camera_names=camera_names,
+                camera_heights=camera_heights,
+                camera_widths=camera_widths,
+                seed=seed,
+            )
+        finally:
+            macros.SIMULATION_TIMESTEP = default_timestep
 
     # --- hooks for subclasses -------------------------------------------------------------------------------
 

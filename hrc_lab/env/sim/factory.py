@@ -16,6 +16,7 @@ from hrc_lab.env.sim.package_to_order import PackageToOrder
 def cell_kwargs(sim: SimSettings) -> dict:
     return {
         "control_freq": sim.control_freq,
+        "physics_timestep": sim.physics_timestep,
         "horizon": sim.horizon,
         "success_threshold": sim.success_threshold,
         "max_joint_step": np.deg2rad(sim.max_joint_step_deg),

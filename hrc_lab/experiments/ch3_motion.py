@@ -1,0 +1,129 @@
+"""Ch.3 motion experiments: Table 3.1 (two-level planner correcting human errors) and Fig. 3.10 (neural dynamic
+planner vs. a full-observation actor)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from hrc_lab.experiments.context import RunContext
+
+COLOURS = {1: "blue", 2: "red"}
+
+
+def correction_demos(env, n: int, protocol, desc: str) -> list:
+    """Expert demonstrations with their change-point stages and ``protocol.subgoals_per_stage`` re-sampled
+    sub-goals per stage (3.3)."""
+    from hrc_lab.data.segmentation import stage_subgoals
+    from hrc_lab.env.sim.expert import ScriptedExpert
+    from hrc_lab.experiments.collect import record_episode
+
+    expert, demos = ScriptedExpert(env), []
+    for _ in tqdm(range(n), desc=desc, unit="demo"):
+        demo = record_episode(env, expert)
+        demo.stage_bounds, demo.stage_subgoals = stage_subgoals(
+            demo, env.stage_label, protocol.subgoals_per_stage, "resample", protocol.segmentation_penalty)
+        if demo.success:
+            demos.append(demo)
+    return demos
+
+
+def train_two_level(ctx: RunContext, env, demos):
+    """Task classifier c(x), sub-goal planner and neural dynamic planner from the demonstrations."""
+    from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier, build_subgoal_planner
+    from hrc_lab.motion.two_level import classifier_pairs, correction_pairs, dynamics_pairs
+
+    classifier = StageClassifier(4, seed=ctx.seed).fit(*classifier_pairs(demos), lambda: ctx.trainer("classifier"))
+    pairs = correction_pairs(demos)
+    planner = build_subgoal_planner(ctx.cfg.motion, 4, seed=ctx.seed)
+    planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"))
+    ndp = DynamicPlanner(ctx.cfg.motion.ndp, env.max_joint_step, env.base_position(), seed=ctx.seed)
+    ndp.fit(*dynamics_pairs(demos), lambda: ctx.trainer("ndp"))
+    return classifier, planner, ndp
+
+
+def table_3_1(ctx: RunContext) -> dict[str, float]:
+    from hrc_lab.env.sim import make_env
+    from hrc_lab.motion.two_level import run_correction
+
+    config, protocol = ctx.cfg.env, ctx.cfg.protocol
+    env = make_env(config, seed=ctx.seed)
+    demos = correction_demos(env, protocol.demos, protocol, f"demos {config.cell}")
+    classifier, planner, ndp = train_two_level(ctx, env, demos)
+    test = make_env(config, seed=1000 + ctx.seed)
+    rows = []
+    for trial in tqdm(range(protocol.trials), desc=f"table 3.1 {config.cell}", unit="trial"):
+        out, final = run_correction(test, planner, ndp, classifier, protocol.subgoals_per_stage,
+                                    protocol.max_steps_per_subgoal, protocol.tolerance)
+        for obj in test.expert_plan():
+            distance = float(np.linalg.norm(final[obj] - test.goals[obj]))
+            row = {"trial": trial, "object": COLOURS[obj], "distance": distance, "collision": bool(test.collisions),
+                   "steps": out.object_steps.get(obj, np.nan), "planning_ms": float(np.mean(out.planning_ms))}
+            for threshold in protocol.thresholds:
+                row[f"success_{threshold:g}"] = distance <= threshold and not test.collisions
+            rows.append(row)
+    trials = pd.DataFrame(rows)
+    ctx.tracker.log_table(trials, "trials")
+    ctx.tracker.log_torch_model(planner.network, "model/subgoal.pt")
+    ctx.tracker.log_torch_model(ndp.network, "model/ndp.pt")
+    metrics = {"planning_ms": float(trials.planning_ms.mean()), "n_demos": float(len(demos))}
+    for colour, part in trials.groupby("object"):
+        for threshold in protocol.thresholds:
+            metrics[f"sr_{colour}_{threshold:g}"] = float(part[f"success_{threshold:g}"].mean())
+        metrics[f"steps_{colour}"] = float(part.steps.mean())
+    return metrics
+
+
+def fig_3_10(ctx: RunContext) -> dict[str, float]:
+    """Mean |Delta| over 30 steps towards random sub-goals from the initial pose, for the neural dynamic planner
+    (Delta only), its direction-only variant and the full-observation actor pi(r, s), all trained on the same
+    error-correction demonstrations."""
+    import dataclasses
+
+    from hrc_lab.env.settings import ErrorCorrectionConfig
+    from hrc_lab.env.sim import make_env
+    from hrc_lab.motion.subgoal import DynamicPlanner
+    from hrc_lab.motion.two_level import dynamics_pairs
+
+    protocol, ndp_config = ctx.cfg.protocol, ctx.cfg.motion.ndp
+    demos = []
+    for task in ("one_object", "two_object"):
+        for case in (1, 2):
+            config = ErrorCorrectionConfig(task=task, sim=dataclasses.replace(ctx.cfg.env.sim, case=case))
+            demos += correction_demos(make_env(config, seed=ctx.seed), protocol.demos_per_case, protocol,
+                                      f"demos {config.cell}")
+    env = make_env(ErrorCorrectionConfig(task="place", sim=ctx.cfg.env.sim), seed=ctx.seed)
+    r, s, a = dynamics_pairs(demos)
+    controllers = {
+        "ndp": DynamicPlanner(ndp_config, env.max_joint_step, env.base_position(), seed=ctx.seed),
+        "ndp_direction": DynamicPlanner(dataclasses.replace(ndp_config, mode="direction"), env.max_joint_step,
+                                        env.base_position(), seed=ctx.seed),
+        "actor": DynamicPlanner(ndp_config, env.max_joint_step, env.base_position(), full_observation=True,
+                                seed=ctx.seed),
+    }
+    for name, controller in controllers.items():
+        controller.fit(r, s, a, lambda name=name: ctx.trainer(name))
+    rng = ctx.rng(3)
+    low, high = np.array(protocol.subgoal_low), np.array(protocol.subgoal_high)
+    rows = []
+    for trial in tqdm(range(protocol.trials), desc="fig 3.10", unit="trial"):
+        subgoal = rng.uniform(low, high)
+        for name, controller in controllers.items():
+            env.reset()
+            for step in range(protocol.steps + 1):
+                r_t = env.eef_position()
+                rows.append({"trial": trial, "controller": name, "step": step,
+                             "distance": float(np.linalg.norm(subgoal - r_t))})
+                if step < protocol.steps:
+                    env.step(np.array([*controller.act(r_t, subgoal), -1.0]))
+    curves = pd.DataFrame(rows)
+    ctx.tracker.log_table(curves, "fig_3_10")
+    final = curves[curves.step == protocol.steps].groupby("controller").distance
+    metrics = {f"final_m_{k}": float(v) for k, v in final.mean().items()}
+    metrics |= {f"final_std_{k}": float(v) for k, v in final.std(ddof=0).items()}
+    for name, part in curves.groupby("controller"):
+        reached = part[part.distance < protocol.converged_m].groupby("trial").step.min()
+        metrics[f"reached_{name}"] = float(len(reached) / protocol.trials)
+        metrics[f"steps_to_converge_{name}"] = float(reached.mean()) if len(reached) else float("nan")
+    return metrics
