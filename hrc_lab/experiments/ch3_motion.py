@@ -59,6 +59,7 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
         for obj in test.expert_plan():
             distance = float(np.linalg.norm(final[obj] - test.goals[obj]))
             row = {"trial": trial, "object": COLOURS[obj], "distance": distance, "collision": bool(test.collisions),
+                   "failure": out.failure,
                    "steps": out.object_steps.get(obj, np.nan), "planning_ms": float(np.mean(out.planning_ms))}
             for threshold in protocol.thresholds:
                 row[f"success_{threshold:g}"] = distance <= threshold and not test.collisions
@@ -72,6 +73,9 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
         for threshold in protocol.thresholds:
             metrics[f"sr_{colour}_{threshold:g}"] = float(part[f"success_{threshold:g}"].mean())
         metrics[f"steps_{colour}"] = float(part.steps.mean())
+    per_trial = trials.drop_duplicates("trial")
+    for failure in ("pick", "collision", "horizon"):
+        metrics[f"fail_{failure}"] = float((per_trial.failure == failure).mean())
     return metrics
 
 
@@ -119,8 +123,10 @@ def fig_3_10(ctx: RunContext) -> dict[str, float]:
                     env.step(np.array([*controller.act(r_t, subgoal), -1.0]))
     curves = pd.DataFrame(rows)
     ctx.tracker.log_table(curves, "fig_3_10")
+    mean_curve = curves.groupby(["controller", "step"]).distance.mean()
+    metrics = {f"curve_{name}_{step:02d}": float(value) for (name, step), value in mean_curve.items()}
     final = curves[curves.step == protocol.steps].groupby("controller").distance
-    metrics = {f"final_m_{k}": float(v) for k, v in final.mean().items()}
+    metrics |= {f"final_m_{k}": float(v) for k, v in final.mean().items()}
     metrics |= {f"final_std_{k}": float(v) for k, v in final.std(ddof=0).items()}
     for name, part in curves.groupby("controller"):
         reached = part[part.distance < protocol.converged_m].groupby("trial").step.min()

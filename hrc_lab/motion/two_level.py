@@ -153,14 +153,18 @@ def run_package(env, planner, ndp, n_subgoals: int = 3, max_steps: int = 30, tol
 
 def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps: int = 30,
                    tolerance: float = 0.008) -> tuple[Rollout, np.ndarray]:
-    """One error-correction trial: for as many stages as the case needs, the classifier labels the stage from the
-    raw observation, the planner proposes its sub-goals. Returns the rollout and the final object positions."""
+    """One error-correction trial: for each manipulation the case needs, the classifier c(x) labels the stage
+    from the raw observation at its start (which object to pick), the placing stage of that object follows, and
+    the planner proposes the sub-goals of each stage. Returns the rollout and the final object positions."""
     env.reset()
     out = Rollout()
-    stages = 2 * len(env.expert_plan())
-    for _ in range(stages):
-        x = np.concatenate([env.object_positions().ravel(), env.eef_position()])
-        label = int(classifier(x[None])[0])
+    label = 0
+    for k in range(2 * len(env.expert_plan())):
+        if k % 2 == 0:
+            x = np.concatenate([env.object_positions().ravel(), env.eef_position()])
+            label = 2 * (int(classifier(x[None])[0]) // 2)  # the picking label of the object c(x) points at
+        else:
+            label += 1
         obj, stage = divmod(label, 2)
         obj += 1  # labels count blue (1) and red (2); green is never moved
         objects = env.object_positions().ravel()
@@ -172,6 +176,9 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
             if not fine:
                 out.failure = "collision" if env.collisions else "horizon"
                 return out, env.object_positions()
+        if stage == PICK and env.suction.held != obj:
+            out.failure = "pick"
+            return out, env.object_positions()
         if stage == PLACE:
             env.step(RELEASE)
             out.steps += 1

@@ -13,6 +13,8 @@ from hrc_lab.report.sections import SECTIONS, TOPICS, Section, load_sections
 from hrc_lab.tracking import resolve_tracking_uri
 
 COMMANDS = {
+    "table_3_1": "hrc-lab experiment=ch3/table_3_1 hydra/launcher=joblib",
+    "fig_3_10": "hrc-lab experiment=ch3/fig_3_10 hydra/launcher=joblib",
     "table_4_1": "hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib",
     "fig_4_7": "hrc-lab experiment=ch4/fig_4_7 hydra/launcher=joblib",
     "practical": "hrc-lab experiment=ch4/practical hydra/launcher=joblib",

@@ -42,6 +42,14 @@ TOPICS = {
             ("ch4/fig_4_9", "fig_4_9"),
         ],
     ),
+    "ch3_motion": (
+        "Ch.3 two-level LfD motion planner: error correction (Table 3.1) and the neural dynamic planner (Fig. 3.10)",
+        "Trials run in our robosuite UR5e error-correction cells (`hrc_lab/env/sim/error_correction.py`), not the "
+        "thesis' CoppeliaSim UR10; demonstrations come from the scripted expert (20 per case and seed), segmented "
+        "into stages by PELT change points (`hrc_lab/data/segmentation.py`), 5 re-sampled sub-goals per stage. "
+        "The neural dynamic planner sees Δ = s − r in the arm's base frame (radial, tangential, vertical).",
+        [("ch3/table_3_1", "table_3_1"), ("ch3/fig_3_10", "fig_3_10")],
+    ),
     "ch4_motion": (
         "Ch.4 motion module: task-conditioned sub-goal planner and neural dynamic planner vs. VI, GPR, MLP",
         "Closed-loop trials run in our robosuite UR5e cell (`hrc_lab/env/sim/`), not the thesis' CoppeliaSim UR10; "
@@ -72,4 +80,4 @@ TOPICS = {
 
 
 def load_sections() -> None:
-    from hrc_lab.report import ch4_motion, ch4_reasoning, ch5_planner, data  # noqa: F401  (registration)
+    from hrc_lab.report import ch3_motion, ch4_motion, ch4_reasoning, ch5_planner, data  # noqa: F401  (registration)
