@@ -26,7 +26,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-OBS_KEYS = ("robot0_joint_pos", "robot0_eef_pos", "object_pos", "object_yaw", "goal_pos", "held", "box_pos")
+OBS_KEYS = ("robot0_joint_pos", "robot0_eef_pos", "lip_target_pos", "object_pos", "object_yaw", "goal_pos", "held",
+            "box_pos")
 DATASETS = ("actions", "states", "rewards", "dones", "stage_labels", "subgoal_indices", "subgoals", "stage_bounds",
             "stage_subgoals")
 

@@ -120,7 +120,7 @@ def fig_3_10(ctx: RunContext) -> dict[str, float]:
                 rows.append({"trial": trial, "controller": name, "step": step,
                              "distance": float(np.linalg.norm(subgoal - r_t))})
                 if step < protocol.steps:
-                    env.step(np.array([*controller.act(r_t, subgoal), -1.0]))
+                    env.step(np.array([*controller.act(env.lip_target_position(), subgoal), -1.0]))
     curves = pd.DataFrame(rows)
     ctx.tracker.log_table(curves, "fig_3_10")
     mean_curve = curves.groupby(["controller", "step"]).distance.mean()

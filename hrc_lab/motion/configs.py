@@ -41,6 +41,11 @@ class SubgoalConfig:
     kl_weight: float = 1e-3  # weight of D_kl[q(z) || N(0, 1)] (Eq. 3.3) on standardised sub-goals
     likelihood_std: float = 0.1  # std of p(s | z) in standardised units (Eq. 3.4)
     gpr_max_points: int = 1500  # GPR is O(n^3): fit on a random subset of this size
+    # Training-set jitter of r (the last 3 inputs): ``r_jitter_copies`` noisy copies of every pair with N(0,
+    # ``r_jitter_m``^2) on r. In closed loop a sub-goal is planned from wherever the dynamic planner stopped (within
+    # the reach tolerance), not from the expert's exact pose; without it the planner is off by ~1 cm there.
+    r_jitter_m: float = 0.01
+    r_jitter_copies: int = 4
     ndp: NDPConfig = field(default_factory=NDPConfig)
 
     def __post_init__(self) -> None:
@@ -49,6 +54,9 @@ class SubgoalConfig:
         for key in ("hidden", "lr", "steps", "batch_size", "likelihood_std", "gpr_max_points"):
             if getattr(self, key) <= 0:
                 raise ValueError(f"motion.{key} must be > 0, got {getattr(self, key)}")
+        if self.r_jitter_m < 0 or self.r_jitter_copies < 0:
+            raise ValueError(f"motion.r_jitter_m and motion.r_jitter_copies must be >= 0, got {self.r_jitter_m}, "
+                             f"{self.r_jitter_copies}")
         if self.kl_weight < 0:
             raise ValueError(f"motion.kl_weight must be >= 0, got {self.kl_weight}")
 

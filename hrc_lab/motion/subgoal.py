@@ -30,6 +30,17 @@ def _tensor(array: np.ndarray) -> torch.Tensor:
     return torch.as_tensor(np.asarray(array), dtype=torch.float32)
 
 
+def jitter_r(x: np.ndarray, labels: np.ndarray, subgoals: np.ndarray, std: float, copies: int,
+             seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs plus ``copies`` copies with Gaussian noise of ``std`` (m) on r, the last three columns of x."""
+    if std == 0 or copies == 0:
+        return x, labels, subgoals
+    rng = np.random.default_rng(seed)
+    noisy = np.repeat(x[None], copies, 0)
+    noisy[..., -3:] += rng.normal(0.0, std, (copies, len(x), 3))
+    return (np.vstack([x, *noisy]), np.tile(labels, copies + 1), np.tile(subgoals, (copies + 1, 1)))
+
+
 class SubgoalPlanner:
     """s = f(x, l): ``fit`` on (observation, label index, sub-goal) triples, ``predict`` the sub-goal mean and std."""
 
@@ -43,7 +54,9 @@ class SubgoalPlanner:
 
     def fit(self, x: np.ndarray, labels: np.ndarray, subgoals: np.ndarray,
             trainer_factory: Callable | None = None) -> SubgoalPlanner:
+        """``x`` ends with r, the lip position (3); see ``SubgoalConfig.r_jitter_m``."""
         cfg = self.config
+        x, labels, subgoals = jitter_r(x, labels, subgoals, cfg.r_jitter_m, cfg.r_jitter_copies, self.seed)
         self.x_scale, self.s_scale = Standardiser(x), Standardiser(subgoals)
         xs, onehot = self._inputs(x, labels)
         target = self.s_scale(subgoals)

@@ -9,6 +9,9 @@ the part it just released) and through the placing stage, and off once the last 
 Labels: Ch.4 (Fig. 4.4) 0 = picking (l_pi), 1 + slot = placing into goal slot; the feature beside r is the
 selected product's position when picking and the box position p when placing. Ch.3 (3.3): the stage label
 0 pick blue, 1 place blue, 2 pick red, 3 place red; the observation is the three objects' positions and r.
+
+r is the lip at the commanded joints (:meth:`~hrc_lab.env.sim.cell.HRCCell.lip_target_position`) wherever the
+robot plans or acts from it; the measured lip, a control step behind, decides when a sub-goal is reached.
 """
 
 from __future__ import annotations
@@ -48,7 +51,7 @@ def package_pairs(demos) -> SubgoalPairs:
                 at = steps[demo.subgoal_indices[steps] == i]
                 if len(at) == 0:
                     continue
-                xs.append(np.concatenate([feature, demo.obs["robot0_eef_pos"][at[0]]]))
+                xs.append(np.concatenate([feature, demo.obs["lip_target_pos"][at[0]]]))
                 labels.append(0 if stage == PICK else 1 + slot_of[obj])
                 targets.append(demo.subgoals[at[0]])
                 groups.append(k)
@@ -62,7 +65,7 @@ def correction_pairs(demos) -> SubgoalPairs:
     for k, demo in enumerate(demos):
         for (obj, stage, start, _), points in zip(demo.stage_bounds, demo.stage_subgoals):
             objects = demo.obs["object_pos"][start]
-            previous = demo.obs["robot0_eef_pos"][start]
+            previous = demo.obs["lip_target_pos"][start]
             for point in points:
                 xs.append(np.concatenate([objects, previous]))
                 labels.append(2 * (obj - 1) + stage)
@@ -73,9 +76,10 @@ def correction_pairs(demos) -> SubgoalPairs:
 
 
 def dynamics_pairs(demos) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(r_t, s_t, a_t) of every demonstrated step: the lip, the designed sub-goal the expert was heading for, and
-    its [base, shoulder, elbow] deltas (Delta = s - r, Eq. 3.5)."""
-    r = np.concatenate([d.obs["robot0_eef_pos"] for d in demos])
+    """(r_t, s_t, a_t) of every demonstrated step: the lip at the commanded joints (where the expert acted from;
+    the measured lip lags a step behind, and a planner trained on it learns to stop short), the designed
+    sub-goal the expert was heading for, and its [base, shoulder, elbow] deltas (Delta = s - r, Eq. 3.5)."""
+    r = np.concatenate([d.obs["lip_target_pos"] for d in demos])
     s = np.concatenate([d.subgoals for d in demos])
     a = np.concatenate([d.actions[:, :3] for d in demos])
     return r, s, a
@@ -104,10 +108,9 @@ def reach(env, ndp, subgoal: np.ndarray, suction: bool, max_steps: int, toleranc
     Returns (steps taken, still fine), where not fine means a collision or the horizon."""
     command = 1.0 if suction else -1.0
     for step in range(max_steps):
-        r = env.eef_position()
-        if np.linalg.norm(subgoal - r) < tolerance:
+        if np.linalg.norm(subgoal - env.eef_position()) < tolerance:
             return step, True
-        env.step(np.array([*ndp.act(r, subgoal), command]))
+        env.step(np.array([*ndp.act(env.lip_target_position(), subgoal), command]))
         if env.collisions or env.done:
             return step + 1, False
     return max_steps, True
@@ -130,7 +133,7 @@ def run_package(env, planner, ndp, n_subgoals: int = 3, max_steps: int = 30, tol
         for stage in (PICK, PLACE):
             for i in range(n_subgoals):
                 feature = env.object_positions()[obj] if stage == PICK else env.box_position()
-                subgoal = plan(planner, np.concatenate([feature, env.eef_position()]),
+                subgoal = plan(planner, np.concatenate([feature, env.lip_target_position()]),
                                0 if stage == PICK else 1 + slot, out.planning_ms)
                 steps, fine = reach(env, ndp, subgoal, stage == PLACE or i > 0, max_steps, tolerance)
                 out.steps += steps
@@ -170,7 +173,8 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
         objects = env.object_positions().ravel()
         before = out.steps
         for i in range(n_subgoals):
-            subgoal = plan(planner, np.concatenate([objects, env.eef_position()]), label, out.planning_ms)
+            subgoal = plan(planner, np.concatenate([objects, env.lip_target_position()]), label,
+                           out.planning_ms)
             steps, fine = reach(env, ndp, subgoal, stage == PLACE or i > 0, max_steps, tolerance)
             out.steps += steps
             if not fine:
@@ -183,5 +187,14 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
             env.step(RELEASE)
             out.steps += 1
         out.object_steps[obj] = out.object_steps.get(obj, 0) + out.steps - before
+    settle(env)
     out.success = bool(env._check_success())
     return out, env.object_positions()
+
+
+def settle(env, steps: int = 10) -> None:
+    """Hold still with suction off until released parts have landed (0.5 s at 20 Hz), before scoring."""
+    for _ in range(steps):
+        if env.done:
+            return
+        env.step(RELEASE)

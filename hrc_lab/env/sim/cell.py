@@ -215,7 +215,11 @@ class HRCCell(ManipulationEnv):
         def held(obs_cache):
             return np.array([self.suction.held], dtype=float)
 
-        for s in (object_pos, object_yaw, goal_pos, held):
+        @sensor(modality="robot")
+        def lip_target_pos(obs_cache):
+            return self.lip_target_position()
+
+        for s in (object_pos, object_yaw, goal_pos, held, lip_target_pos):
             observables[s.__name__] = Observable(name=s.__name__, sensor=s, sampling_rate=self.control_freq)
         return observables
 
@@ -374,6 +378,11 @@ class HRCCell(ManipulationEnv):
     def eef_position(self) -> np.ndarray:
         """Position of the cup's lip (r in the thesis)."""
         return self.sim.data.site_xpos[self._grip_site].copy()
+
+    def lip_target_position(self) -> np.ndarray:
+        """Where the lip goes once the servo settles on the commanded joints: the servo lags about one control
+        step (up to ~4 cm at full speed), so a joint-space controller acts from here, as the expert does."""
+        return self.lip_kinematics(self._q_cmd)[0]
 
     def goal_distances(self) -> np.ndarray:
         """|P_obj - P_goal| of every task object (Eq. 3.6 / 4.7)."""
