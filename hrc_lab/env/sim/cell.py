@@ -37,7 +37,9 @@ from robosuite.utils.observables import Observable, sensor
 from hrc_lab.env.sim.suction import Suction, SuctionCup, weld_elements
 
 PICK, PLACE = 0, 1
-HOME_QPOS = np.array([0.0, -1.75, 1.9, -1.72, -np.pi / 2, 0.0])  # tool down, ~0.3 m above the table centre
+# Tool down, the lip 0.22 m above the table centre: the first reach of a trial starts at working height (from a
+# higher home the dynamic planner, which sees only Delta, must generalise to configurations it rarely saw).
+HOME_QPOS = np.array([-0.333, -1.474, 2.365, -np.pi / 2 + 1.474 - 2.365, -np.pi / 2, 0.0])
 
 
 def arm_controller_config() -> dict:

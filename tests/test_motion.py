@@ -1,0 +1,155 @@
+"""Motion module (Ch.3/4): the variational loss on known inputs, network shapes, the base frame of the dynamic
+planner, the jitter of r, and two-level rollouts of a few steps in the robot cells."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+
+import lightning.pytorch as pl
+import numpy as np
+import pytest
+import torch
+
+from hrc_lab.env.settings import ErrorCorrectionConfig, PackageToOrderConfig
+from hrc_lab.env.sim import make_env
+from hrc_lab.motion.configs import NDPConfig, SubgoalConfig
+from hrc_lab.motion.networks import NeuralDynamicPlanner, TaskConditionedVI, variational_loss
+from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier, base_frame, build_subgoal_planner, jitter_r
+from hrc_lab.motion.two_level import (
+    classifier_pairs,
+    correction_pairs,
+    dynamics_pairs,
+    package_pairs,
+    run_correction,
+    run_package,
+)
+
+HALF_LOG_2PI = 0.5 * math.log(2 * math.pi)
+
+
+def test_kl_term_is_zero_at_the_prior_and_known_away_from_it():
+    target = torch.zeros(4, 3)
+    _, _, kl = variational_loss(torch.zeros(4, 3), torch.ones(4, 3), target, 1.0, 1.0)
+    assert kl.item() == pytest.approx(0.0, abs=1e-6)
+    # D_kl[N(1, 1) || N(0, 1)] = 0.5 per dimension; D_kl[N(0, e^-1) || N(0, 1)] = 0.5 (e^-2 - 1) + 1 per dimension
+    _, _, kl = variational_loss(torch.ones(4, 3), torch.ones(4, 3), target, 1.0, 1.0)
+    assert kl.item() == pytest.approx(1.5, rel=1e-5)
+    _, _, kl = variational_loss(torch.zeros(2, 3), torch.full((2, 3), math.exp(-1)), torch.zeros(2, 3), 1.0, 1.0)
+    assert kl.item() == pytest.approx(3 * (0.5 * (math.exp(-2) - 1) + 1), rel=1e-5)
+
+
+def test_nll_term_is_the_gaussian_negative_log_likelihood_of_the_reparameterised_sample():
+    mean, std, target, sigma = torch.tensor([[0.5, -1.0]]), torch.tensor([[0.2, 0.3]]), torch.tensor([[1.0, 0.0]]), 0.5
+    torch.manual_seed(7)
+    eps = torch.randn(1, 2)
+    torch.manual_seed(7)
+    loss, nll, kl = variational_loss(mean, std, target, sigma, kl_weight=0.1)
+    z = mean + std * eps
+    expected = (0.5 * ((target - z) / sigma) ** 2 + math.log(sigma) + HALF_LOG_2PI).sum()
+    assert nll.item() == pytest.approx(expected.item(), rel=1e-5)
+    assert loss.item() == pytest.approx(nll.item() + 0.1 * kl.item(), rel=1e-6)
+
+
+def test_network_shapes_and_label_conditioning():
+    x, labels = torch.randn(5, 6), torch.eye(4)[[0, 1, 2, 3, 0]]
+    mean, std = TaskConditionedVI(6, 4, hidden=16)(x, labels)
+    assert mean.shape == std.shape == (5, 3) and (std > 0).all()
+    conditioned = TaskConditionedVI(6, 4, hidden=16)
+    assert not torch.allclose(conditioned(x, labels)[0], conditioned(x, torch.eye(4)[[1, 2, 3, 0, 1]])[0])
+    blind = TaskConditionedVI(6, 4, hidden=16, use_labels=False)
+    assert torch.allclose(blind(x, labels)[0], blind(x, torch.zeros_like(labels))[0])
+    mean, std = TaskConditionedVI(6, 4, hidden=16, stochastic=False)(x, labels)
+    assert (std == 0).all()
+    assert NeuralDynamicPlanner(hidden=16)(torch.randn(7, 3)).shape == (7, 3)
+    assert NeuralDynamicPlanner(hidden=16, directions=True)(torch.randn(7, 3)).shape == (7, 3, 3)
+
+
+def test_base_frame_splits_delta_into_radial_tangential_vertical():
+    base = np.zeros(3)
+    r = np.array([[0.0, 1.0, 0.5], [1.0, 0.0, 0.5]])
+    delta = np.array([[0.0, 0.2, -0.1], [0.0, 0.3, 0.0]])
+    np.testing.assert_allclose(base_frame(delta, r, base), [[0.2, 0.0, -0.1], [0.0, 0.3, 0.0]], atol=1e-12)
+
+
+def test_jitter_moves_only_r_and_keeps_targets():
+    x, labels, subgoals = np.arange(18.0).reshape(3, 6), np.array([0, 1, 2]), np.ones((3, 3))
+    xs, ls, ss = jitter_r(x, labels, subgoals, std=0.01, copies=2, seed=0)
+    assert xs.shape == (9, 6) and ls.tolist() == [0, 1, 2] * 3 and ss.shape == (9, 3)
+    np.testing.assert_array_equal(xs[:, :3], np.tile(x[:, :3], (3, 1)))
+    assert 0 < np.abs(xs[3:, 3:] - np.tile(x[:, 3:], (2, 1))).max() < 0.1
+    assert jitter_r(x, labels, subgoals, 0.0, 2, 0)[0] is x
+
+
+def tiny_trainer() -> pl.Trainer:
+    return pl.Trainer(max_epochs=1, logger=False, enable_checkpointing=False, enable_progress_bar=False,
+                      enable_model_summary=False)
+
+
+def expert_demos(env, n: int, **segmentation):
+    from hrc_lab.data.segmentation import stage_subgoals
+    from hrc_lab.env.sim.expert import ScriptedExpert
+    from hrc_lab.experiments.collect import record_episode
+
+    expert, demos = ScriptedExpert(env), []
+    for _ in range(n):
+        demo = record_episode(env, expert)
+        if segmentation:
+            demo.stage_bounds, demo.stage_subgoals = stage_subgoals(demo, env.stage_label, **segmentation)
+        demos.append(demo)
+    return demos
+
+
+@pytest.fixture(scope="module")
+def package_models():
+    env = make_env(PackageToOrderConfig(n_objects=3, n_selected=2), seed=0)
+    demos = expert_demos(env, 2)
+    pairs = package_pairs(demos)
+    assert pairs.x.shape[1] == 6 and set(pairs.labels) <= {0, 1, 2}
+    planner = build_subgoal_planner(SubgoalConfig(steps=20), 3).fit(pairs.x, pairs.labels, pairs.subgoals,
+                                                                     tiny_trainer)
+    ndp = DynamicPlanner(NDPConfig(steps=20, hidden=16), env.max_joint_step, env.base_position())
+    ndp.fit(*dynamics_pairs(demos), tiny_trainer)
+    return env, planner, ndp
+
+
+def test_package_rollout_of_a_few_steps(package_models):
+    env, planner, ndp = package_models
+    out = run_package(env, planner, ndp, max_steps=2)
+    assert 0 < out.steps <= 2 * 6 * len(env.expert_plan()) + len(env.expert_plan())
+    assert out.planning_ms and all(ms > 0 for ms in out.planning_ms)
+    assert out.failure in ("", "pick", "placement", "collision", "horizon")
+    assert out.success == (out.failure == "")
+
+
+def test_dynamic_planner_acts_within_the_joint_limit(package_models):
+    env, _, ndp = package_models
+    action = ndp.act(env.lip_target_position(), env.lip_target_position() + np.array([0.3, 0.0, -0.2]))
+    assert action.shape == (3,) and np.all(np.abs(action) <= env.max_joint_step + 1e-9)
+
+
+def test_correction_rollout_of_a_few_steps():
+    env = make_env(ErrorCorrectionConfig(task="one_object"), seed=0)
+    demos = expert_demos(env, 2, k=5, mode="resample")
+    pairs = correction_pairs(demos)
+    assert pairs.x.shape[1] == 12 and len(pairs.x) % 5 == 0
+    classifier = StageClassifier(4, hidden=16, steps=20).fit(*classifier_pairs(demos), tiny_trainer)
+    planner = build_subgoal_planner(SubgoalConfig(steps=20), 4).fit(pairs.x, pairs.labels, pairs.subgoals,
+                                                                     tiny_trainer)
+    ndp = DynamicPlanner(NDPConfig(steps=20, hidden=16), env.max_joint_step, env.base_position())
+    ndp.fit(*dynamics_pairs(demos), tiny_trainer)
+    out, final = run_correction(env, planner, ndp, classifier, n_subgoals=2, max_steps=2)
+    assert out.steps > 0 and final.shape == (3, 3)
+    assert out.failure in ("", "pick", "collision", "horizon")
+
+
+@pytest.mark.parametrize("experiment,overrides", [
+    ("ch4/table_4_2", ["env=package_to_order_2of3", "protocol.demos=3", "protocol.trials=2"]),
+    ("ch3/table_3_1", ["protocol.demos=2", "protocol.trials=1", "protocol.max_steps_per_subgoal=3"]),
+])
+def test_motion_experiment_end_to_end(experiment, overrides, cli_env, console_script):
+    tiny = ["hydra.mode=RUN", "trainer.max_epochs=1", "motion.steps=10", "motion.ndp.steps=10"]
+    result = subprocess.run([console_script("hrc-lab"), f"experiment={experiment}", *tiny, *overrides],
+                            capture_output=True, text=True, env=cli_env, timeout=300)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert "planning_ms=" in result.stderr + result.stdout
