@@ -49,7 +49,7 @@ def table_3_1(runs: pd.DataFrame) -> Section:
                       f"thesis_sr_{threshold}": ref[f"sr_at_{threshold}"][0]}
         steps = mean_std(part.assign(all="all"), ["all"], f"steps_{colour}")
         steps_mean, steps_std = (steps.iloc[0]["mean"], steps.iloc[0]["std"]) if len(steps) else (np.nan, np.nan)
-        row["steps"] = (f"{steps_mean:.1f} ± {steps_std:.1f} ({ref['steps_at_0.08'][0]:.1f} / "
+        row["steps"] = (f"{fmt(steps_mean, steps_std, digits=1)} ({ref['steps_at_0.08'][0]:.1f} / "
                         f"{ref['steps_at_0.06'][0]:.1f})")
         entry |= {"steps_mean": steps_mean, "steps_std": steps_std}
         rows.append(row)
