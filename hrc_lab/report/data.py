@@ -41,7 +41,8 @@ def _section(runs: pd.DataFrame, title: str, note: str) -> Section:
         "Expert SR: share of episodes where every object ended within δr = 0.06 m of its goal, released, without "
         "a collision (Eq. 4.7). Stage agreement: share of steps whose change-point stage (PELT on object "
         "trajectories, `hrc_lab/data/segmentation.py`) equals the expert's own pick/place × object label. Speeds "
-        "are wall-clock on 2 shared cores (two jobs at a time), without rendering.",
+        "are wall-clock on the machine that collected (here 2 cores, two jobs at a time, and whatever else ran then: "
+        "compare runs of one sweep, not sweeps), without rendering.",
     ])
     return Section(title, text, table, {f"{runs.table.iloc[0]}.png": _plot(runs)})
 
