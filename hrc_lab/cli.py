@@ -25,8 +25,8 @@ log = logging.getLogger("hrc_lab")
 
 
 def method_of(cfg: DictConfig) -> str:
-    """The method a run compares: the reasoning module, else the motion module, else "none"."""
-    for group in ("reasoning", "motion"):
+    """The method a run compares: the reasoning module, else the motion module, else the grasp module, else "none"."""
+    for group in ("reasoning", "motion", "grasp"):
         name = (cfg.get(group) or {}).get("name", "none")
         if name != "none":
             return name

@@ -31,7 +31,7 @@ TOP_LEVEL_KEYS = {
     "logger",
     "paths",
 }
-UNIMPLEMENTED_GROUPS = ("perception", "grasp")  # only their `none` option exists so far
+UNIMPLEMENTED_GROUPS = ("perception",)  # only its `none` option exists so far
 
 
 @dataclass
@@ -84,6 +84,7 @@ class ValidatedConfig:
     env: Any
     reasoning: Any
     motion: Any
+    grasp: Any
     protocol: Any
     logger: LoggerConfig
 
@@ -101,6 +102,7 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
     """Check every group of a composed config; raise :class:`ConfigError` naming the first bad key."""
     from hrc_lab.env import ENVS
     from hrc_lab.experiments import PROTOCOLS
+    from hrc_lab.grasp import GRASPS
     from hrc_lab.motion import MOTIONS
     from hrc_lab.reasoning import REASONERS
 
@@ -119,11 +121,13 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
     _validate_trainer(cfg.trainer)
     reasoning = cfg.get("reasoning")
     motion = cfg.get("motion")
+    grasp = cfg.get("grasp")
     return ValidatedConfig(
         raw=cfg,
         env=ENVS.validate(cfg.env),
         reasoning=None if reasoning is None or reasoning.get("name") == "none" else REASONERS.validate(reasoning),
         motion=None if motion is None or motion.get("name") == "none" else MOTIONS.validate(motion),
+        grasp=None if grasp is None or grasp.get("name") == "none" else GRASPS.validate(grasp),
         protocol=PROTOCOLS.validate(cfg.protocol, "protocol"),
         logger=LOGGERS.validate(cfg.logger),
     )

@@ -10,6 +10,10 @@ import pytest
 from hydra import compose, initialize_config_dir
 from hydra.core.global_hydra import GlobalHydra
 
+# Off-screen MuJoCo rendering (the Ch.6 clutter scenes) must be chosen before the first `import mujoco`, which an
+# earlier test may do through robosuite.
+os.environ.setdefault("MUJOCO_GL", "egl")
+
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"
 

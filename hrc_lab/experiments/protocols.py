@@ -235,3 +235,45 @@ class Fig310Protocol:
 CH3 = "hrc_lab.experiments.ch3_motion"
 PROTOCOLS.register("ch3_table_3_1", Table31Protocol, f"{CH3}:table_3_1")
 PROTOCOLS.register("ch3_fig_3_10", Fig310Protocol, f"{CH3}:fig_3_10")
+
+
+@dataclass
+class Table61Protocol:
+    """Object accuracy (6.4.1): ``train_images`` rendered scenes, each with one random request of 1-3 part types,
+    train the solver; ``test_images`` unseen scenes are scored with new random requests of each size in
+    ``request_sizes``. Scenes and detector depend on ``data_seed`` only (cached and shared by every job)."""
+
+    data_seed: int = 0
+    train_images: int = 427
+    test_images: int = 50
+    request_sizes: list[int] = field(default_factory=lambda: [1, 2, 3])
+
+    def __post_init__(self) -> None:
+        if self.data_seed < 0:
+            raise ValueError(f"protocol.data_seed must be >= 0, got {self.data_seed}")
+        if self.train_images < 1 or self.test_images < 1:
+            raise ValueError("protocol.train_images and protocol.test_images must be >= 1")
+        if not self.request_sizes or any(k not in (1, 2, 3) for k in self.request_sizes):
+            raise ValueError(f"protocol.request_sizes must be values in 1..3, got {self.request_sizes}")
+
+
+@dataclass
+class Table62SingleProtocol(Table61Protocol):
+    """Algorithm 4 on one image (Table 6.2, single-image row): ``cases`` scenes of each size in ``object_counts``,
+    one random requested part type each."""
+
+    object_counts: list[int] = field(default_factory=lambda: [3, 4, 5, 6])
+    cases: int = 30
+    examples: int = 4  # scenes drawn in figures/examples.png
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.object_counts or any(not 1 <= n <= 6 for n in self.object_counts):
+            raise ValueError(f"protocol.object_counts must be values in 1..6, got {self.object_counts}")
+        if self.cases < 1:
+            raise ValueError(f"protocol.cases must be >= 1, got {self.cases}")
+
+
+CH6 = "hrc_lab.experiments.ch6_grasp"
+PROTOCOLS.register("ch6_table_6_1", Table61Protocol, f"{CH6}:table_6_1")
+PROTOCOLS.register("ch6_table_6_2_single", Table62SingleProtocol, f"{CH6}:table_6_2_single")

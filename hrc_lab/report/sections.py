@@ -64,6 +64,15 @@ TOPICS = {
         "goal configurations (`conf/env/ato.yaml`; the thesis' Fig. 5.4 is not legible in its text).",
         [("ch5/fig_5_7", "fig_5_7"), ("ch5/table_5_2_planner", "table_5_2_planner")],
     ),
+    "ch6_grasp": (
+        "Ch.6 iterative visual grasping: graspability and grasp solutions from detector features",
+        "Scenes are rendered in MuJoCo (parts a, b, c dropped with physics, top-down camera; "
+        "`hrc_lab/env/sim/clutter_scene.py`), not the thesis' photos of real parts; labels come from one geometric "
+        "rule for a top-down grasp with a fixed gripper orientation (`hrc_lab/env/clutter_rule.py`), not a human "
+        "expert; the detector is a small Faster R-CNN trained from scratch on the rendered scenes, not a "
+        "pretrained ResNet-101-FPN.",
+        [("ch6/table_6_1", "table_6_1"), ("ch6/table_6_2_single", "table_6_2_single")],
+    ),
     "data_demonstrations": (
         "Robot cells and scripted-expert demonstrations (Ch.3, Ch.4)",
         "robosuite 1.5.1 UR5e with our suction cup on MuJoCo 3.9.0 (`hrc_lab/env/sim/`), not the thesis' CoppeliaSim "
@@ -80,4 +89,11 @@ TOPICS = {
 
 
 def load_sections() -> None:
-    from hrc_lab.report import ch3_motion, ch4_motion, ch4_reasoning, ch5_planner, data  # noqa: F401  (registration)
+    from hrc_lab.report import (  # noqa: F401  (registration)
+        ch3_motion,
+        ch4_motion,
+        ch4_reasoning,
+        ch5_planner,
+        ch6_grasp,
+        data,
+    )

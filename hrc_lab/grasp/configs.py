@@ -1,0 +1,113 @@
+"""Config schemas of the Ch.6 grasp-solution methods (light: no torch import), and their registry.
+
+``gnn_att`` is the thesis' method (Sec. 6.2); the baselines of 6.4.1 differ from it in one field each:
+``gnn_att_wo_we`` (edge weights all 1), ``gnn_lstm`` (plain LSTM decoder), ``gnn_df_att`` (distance filter 0.16),
+``gcn_att`` (GCNConv in place of the WL-GNN's GraphConv). ``gvmrn_rf`` (relation classification on union-box
+features, :mod:`hrc_lab.grasp.relation`) reads ``distance_filter``, ``hidden``, ``layers`` and the training keys.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from hrc_lab.registry import Registry
+
+GRASPS = Registry("grasp")
+
+LEVELS = ("0", "1", "2")  # detector FPN levels at strides 4, 8, 16
+DETECTOR_MODES = ("trained", "oracle")
+EDGE_MODES = ("inverse_distance", "ones", "distance_filter")
+CONVS = ("graph", "gcn")
+DECODERS = ("lstm_att", "lstm")
+
+
+@dataclass
+class DetectorConfig:
+    """Size, training and post-processing of the detector (see the module docstring for the choices)."""
+
+    image_size: int = 160  # input side, px (no resizing inside the model)
+    width: int = 16  # channels of the first backbone stage (then 2x, 4x)
+    blocks: int = 1  # BasicBlocks per backbone stage
+    fpn_channels: int = 32
+    representation_size: int = 128  # size of f_i (the TwoMLPHead output)
+    anchor_sizes: list[list[int]] = field(default_factory=lambda: [[12, 20], [28, 40], [56, 80]])  # per FPN level
+    aspect_ratios: list[float] = field(default_factory=lambda: [0.5, 1.0, 2.0])
+    rpn_post_nms_train: int = 256  # proposals per image kept for the box head in training
+    rpn_post_nms_test: int = 100
+    rpn_batch_size: int = 128  # anchors sampled per image for the RPN loss
+    box_batch_size: int = 64  # proposals sampled per image for the box-head loss
+    steps: int = 1500  # gradient steps in total (split over the Trainer's max_epochs)
+    batch_size: int = 8
+    lr: float = 2e-3  # AdamW, linear warm-up then cosine decay to 0
+    weight_decay: float = 1e-4
+    warmup_steps: int = 100
+    flip: bool = True  # random horizontal and vertical flips in training
+    score_threshold: float = 0.5  # detections below are dropped by detect()
+    nms: float = 0.5  # per-class NMS IoU of the box head
+    agnostic_nms: float = 0.7  # class-agnostic NMS IoU after it (1.0: off)
+    max_detections: int = 20  # per image
+    seed: int = 0  # initialisation, sampling order and flips
+    mode: str = "trained"  # "trained": detections; "oracle": ground-truth boxes, features from the same network
+
+    def __post_init__(self) -> None:
+        for key in ("image_size", "width", "blocks", "fpn_channels", "representation_size", "rpn_post_nms_train",
+                    "rpn_post_nms_test", "rpn_batch_size", "box_batch_size", "steps", "batch_size", "lr",
+                    "max_detections"):
+            if getattr(self, key) <= 0:
+                raise ValueError(f"grasp.detector.{key} must be > 0, got {getattr(self, key)}")
+        if self.image_size % 32:
+            raise ValueError(f"grasp.detector.image_size must be a multiple of 32, got {self.image_size}")
+        if self.weight_decay < 0 or self.warmup_steps < 0:
+            raise ValueError("grasp.detector.weight_decay and grasp.detector.warmup_steps must be >= 0")
+        sizes = [[int(s) for s in level] for level in self.anchor_sizes]  # plain lists (also from a ListConfig)
+        self.anchor_sizes, self.aspect_ratios = sizes, [float(r) for r in self.aspect_ratios]
+        if len(sizes) != len(LEVELS) or any(not level or min(level) <= 0 for level in sizes):
+            raise ValueError(
+                f"grasp.detector.anchor_sizes must give {len(LEVELS)} non-empty lists of positive sizes (one per "
+                f"FPN level at strides 4, 8, 16), got {self.anchor_sizes}"
+            )
+        if len({len(level) for level in sizes}) != 1:
+            raise ValueError(f"grasp.detector.anchor_sizes must give as many sizes on every level: {self.anchor_sizes}")
+        if not self.aspect_ratios or min(self.aspect_ratios) <= 0:
+            raise ValueError(f"grasp.detector.aspect_ratios must be positive, got {self.aspect_ratios}")
+        if self.mode not in DETECTOR_MODES:
+            raise ValueError(f"grasp.detector.mode must be one of {DETECTOR_MODES}, got '{self.mode}'")
+        for key in ("score_threshold", "nms", "agnostic_nms"):
+            if not 0 <= getattr(self, key) <= 1:
+                raise ValueError(f"grasp.detector.{key} must be in [0, 1], got {getattr(self, key)}")
+
+
+@dataclass
+class GraspSolverConfig:
+    """Scene graph (Eq. 6.1), WL-GNN (Eq. 6.2-6.3) and solution decoder (Eq. 6.4-6.7)."""
+
+    edges: str = "inverse_distance"  # Eq. 6.1; "ones": every weight 1; "distance_filter": 1 within distance_filter
+    distance_filter: float = 0.16  # image-normalised box-centre distance of GNN_DF_Att
+    conv: str = "graph"  # "graph": WL-GNN (PyG GraphConv, Eq. 6.2); "gcn": GCNConv
+    hidden: int = 128
+    layers: int = 3
+    decoder: str = "lstm_att"  # "lstm_att": LSTM with attention over segments of f' (Eq. 6.4-6.6); "lstm": plain
+    segments: int = 8  # attention segments of the decoder input f'
+    word_dim: int = 16
+    lstm_hidden: int = 64
+    lr: float = 1e-3
+    batch_size: int = 32
+    steps_per_epoch: int = 50  # an epoch is this many batches sampled with replacement
+    detector: DetectorConfig = field(default_factory=DetectorConfig)
+
+    def __post_init__(self) -> None:
+        for key, allowed in (("edges", EDGE_MODES), ("conv", CONVS), ("decoder", DECODERS)):
+            if getattr(self, key) not in allowed:
+                raise ValueError(f"grasp.{key} must be one of {allowed}, got '{getattr(self, key)}'")
+        for key in ("distance_filter", "hidden", "layers", "segments", "word_dim", "lstm_hidden", "lr"):
+            if getattr(self, key) <= 0:
+                raise ValueError(f"grasp.{key} must be > 0, got {getattr(self, key)}")
+        for key in ("batch_size", "steps_per_epoch"):
+            if getattr(self, key) < 1:
+                raise ValueError(f"grasp.{key} must be >= 1, got {getattr(self, key)}")
+
+
+SOLVER = "hrc_lab.grasp.solver:GraspSolver"
+for _name in ("gnn_att", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att"):
+    GRASPS.register(_name, GraspSolverConfig, SOLVER)
+GRASPS.register("gvmrn_rf", GraspSolverConfig, "hrc_lab.grasp.relation:RelationSolver")

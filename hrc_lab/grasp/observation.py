@@ -1,0 +1,82 @@
+"""What the Ch.6 solvers see of a rendered scene: the detected (or oracle) objects with their box-head features,
+matched to the scene's parts so that the labelling rule can score and label them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from itertools import combinations
+
+import numpy as np
+import torch
+
+from hrc_lab.env.clutter import ClutterScene, ClutterSpec
+from hrc_lab.env.clutter_rule import blockers, graspable, solution_tokens
+from hrc_lab.grasp.detector import Detections, match_detections
+
+
+@dataclass
+class SceneNodes:
+    """One image as a solver sees it, with the rule's ground truth for the parts its objects match."""
+
+    scene: ClutterScene
+    boxes: np.ndarray  # (n, 4) px, detected (or ground-truth) boxes
+    labels: list[str]
+    features: torch.Tensor  # (n, d) box-head features f_i
+    truth: np.ndarray  # per object, index of the matched part or -1 (a false detection)
+    rule_graspable: np.ndarray  # per part
+    rule_solution: list[list[str]]  # per part
+    rule_blockers: list[list[int]]  # per part
+    union_features: dict[tuple[int, int], torch.Tensor] = field(default_factory=dict)  # (i < j) -> f of the union box
+
+    @property
+    def image_size(self) -> int:
+        return int(self.scene.image.shape[0])
+
+    def requested(self, request: set[str]) -> np.ndarray:
+        return np.array([label in request for label in self.labels], dtype=bool)
+
+
+def union_box(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.concatenate([np.minimum(a[:2], b[:2]), np.maximum(a[2:], b[2:])])
+
+
+def scene_nodes(
+    spec: ClutterSpec, scenes: list[ClutterScene], detector, mode: str, union_features: bool = False
+) -> list[SceneNodes]:
+    """Detections (``mode=trained``) or ground-truth boxes (``oracle``) with box-head features, matched to parts;
+    with ``union_features`` also the feature of every pair's union box (GVMRN_RF)."""
+    images = [s.image for s in scenes]
+    if mode == "oracle":
+        features = detector.features_for_boxes(images, [s.boxes for s in scenes])
+        found = [Detections(s.boxes, s.types, np.ones(len(s.objects), np.float32), f) for s, f in zip(scenes, features)]
+    else:
+        found = detector.detect(images)
+    unions = None
+    if union_features:
+        pairs = [list(combinations(range(len(d.labels)), 2)) for d in found]
+        boxes = [
+            np.array([union_box(d.boxes[i], d.boxes[j]) for i, j in p], dtype=np.float32).reshape(-1, 4)
+            for d, p in zip(found, pairs)
+        ]
+        unions = [dict(zip(p, f)) for p, f in zip(pairs, detector.features_for_boxes(images, boxes))]
+    nodes = []
+    for k, (scene, det) in enumerate(zip(scenes, found)):
+        match = match_detections(det.boxes, det.labels, scene.boxes, scene.types)  # per part: detection or -1
+        truth = np.full(len(det.labels), -1)
+        for part, node in enumerate(match):
+            if node >= 0:
+                truth[node] = part
+        nodes.append(
+            SceneNodes(
+                scene=scene,
+                boxes=np.asarray(det.boxes, dtype=np.float32).reshape(-1, 4),
+                labels=list(det.labels),
+                features=torch.as_tensor(det.features).float(),
+                truth=truth,
+                rule_graspable=graspable(spec, scene),
+                rule_solution=[solution_tokens(spec, scene, i) for i in range(len(scene.objects))],
+                rule_blockers=blockers(spec, scene),
+                union_features=unions[k] if unions else {},
+            )
+        )
+    return nodes

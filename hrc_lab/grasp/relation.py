@@ -1,0 +1,179 @@
+"""``grasp=gvmrn_rf``: the relationship-reasoning baseline of 6.4.1 (GVMRN with a Relation Filter, refs. [121, 122]).
+
+Instead of one node per object, GVMRN classifies the relation of object pairs. A Relation Filter keeps the ordered
+pairs (i, j) whose boxes intersect or whose normalised centre distance is below ``distance_filter``; each kept pair
+is a relation node with the detector feature of the union box of the two objects, both labels, the request flag of
+i and the offset between the box centres. Relation nodes that share an object are linked, and ``layers`` GCNConv
+layers classify each into "none", "above" (j has to go before i can be grasped), "under" (i has to go before j)
+or "help" (i and j are parts of one type in each other's way), with cross-entropy on the relation nodes of the
+requested objects only, as in the thesis' comparison.
+
+The method does not decode text: the grasp solution of a requested object i is read off its relations, so it can be
+scored like the others (6.4.1 assesses its relation predictions): help if any relation (i, j) is "help", else "move"
+the types of the objects predicted "above" i, else graspable.
+"""
+
+from __future__ import annotations
+
+from itertools import permutations
+
+import lightning.pytorch as pl
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch import nn
+from torch_geometric.data import Data
+from torch_geometric.nn import GCNConv
+
+from hrc_lab.env.clutter import PART_TYPES
+from hrc_lab.grasp.configs import GraspSolverConfig
+from hrc_lab.grasp.observation import SceneNodes
+from hrc_lab.grasp.solver import NodeReading
+from hrc_lab.reasoning.module import StageDataModule
+
+RELATIONS = ("none", "above", "under", "help")
+
+
+def box_intersection(a: np.ndarray, b: np.ndarray) -> float:
+    width = min(a[2], b[2]) - max(a[0], b[0])
+    height = min(a[3], b[3]) - max(a[1], b[1])
+    return max(0.0, width) * max(0.0, height)
+
+
+def relation_filter(nodes: SceneNodes, threshold: float) -> list[tuple[int, int]]:
+    """Ordered pairs (i, j) whose boxes intersect or lie closer than ``threshold`` (normalised centre distance)."""
+    centres = (nodes.boxes[:, :2] + nodes.boxes[:, 2:]) / 2 / nodes.image_size
+    return [
+        (i, j)
+        for i, j in permutations(range(len(nodes.labels)), 2)
+        if box_intersection(nodes.boxes[i], nodes.boxes[j]) > 0 or np.linalg.norm(centres[i] - centres[j]) < threshold
+    ]
+
+
+def relation_label(nodes: SceneNodes, i: int, j: int) -> int:
+    """The rule's relation of the parts behind objects i and j (-1 when either is a false detection)."""
+    pi, pj = int(nodes.truth[i]), int(nodes.truth[j])
+    if pi < 0 or pj < 0:
+        return -1
+    j_blocks_i, i_blocks_j = pj in nodes.rule_blockers[pi], pi in nodes.rule_blockers[pj]
+    if (j_blocks_i or i_blocks_j) and nodes.scene.objects[pi].type == nodes.scene.objects[pj].type:
+        return RELATIONS.index("help")
+    if j_blocks_i:
+        return RELATIONS.index("above")
+    if i_blocks_j:
+        return RELATIONS.index("under")
+    return RELATIONS.index("none")
+
+
+class RelationNet(nn.Module):
+    def __init__(self, in_dim: int, cfg: GraspSolverConfig) -> None:
+        super().__init__()
+        self.input = nn.Sequential(nn.LayerNorm(in_dim), nn.Linear(in_dim, cfg.hidden), nn.ReLU())
+        self.convs = nn.ModuleList(GCNConv(cfg.hidden, cfg.hidden) for _ in range(cfg.layers))
+        self.head = nn.Linear(cfg.hidden, len(RELATIONS))
+
+    def forward(self, batch) -> torch.Tensor:
+        h = self.input(batch.x)
+        for conv in self.convs:
+            h = F.relu(conv(h, batch.edge_index))
+        return self.head(h)
+
+
+class RelationModule(pl.LightningModule):
+    def __init__(self, network: RelationNet, lr: float) -> None:
+        super().__init__()
+        self.network = network
+        self.lr = lr
+
+    def training_step(self, batch, batch_idx: int) -> torch.Tensor:
+        logits = self.network(batch)
+        mask = batch.labelled
+        loss = F.cross_entropy(logits[mask], batch.relation[mask])
+        self.log("train_loss", loss, on_step=False, on_epoch=True, batch_size=int(mask.sum()))
+        return loss
+
+    def configure_optimizers(self):
+        return torch.optim.Adam(self.parameters(), lr=self.lr)
+
+
+class RelationSolver:
+    """GVMRN_RF behind the solver interface of :class:`hrc_lab.grasp.solver.GraspSolver`."""
+
+    needs_union_features = True
+
+    def __init__(self, spec, cfg: GraspSolverConfig, seed: int = 0) -> None:
+        self.spec, self.cfg, self.seed = spec, cfg, seed
+        self.network: RelationNet | None = None
+
+    def graph(self, nodes: SceneNodes, requested: np.ndarray, **targets) -> Data:
+        pairs = relation_filter(nodes, self.cfg.distance_filter)
+        one_hot = torch.eye(len(PART_TYPES))
+        centres = torch.as_tensor((nodes.boxes[:, :2] + nodes.boxes[:, 2:]) / 2 / nodes.image_size)
+        rows = [
+            torch.cat(
+                [
+                    nodes.union_features[(min(i, j), max(i, j))].float(),
+                    one_hot[PART_TYPES.index(nodes.labels[i])],
+                    one_hot[PART_TYPES.index(nodes.labels[j])],
+                    torch.tensor([float(requested[i])]),
+                    (centres[j] - centres[i]).float(),
+                ]
+            )
+            for i, j in pairs
+        ]
+        feature_dim = nodes.features.shape[1] + 2 * len(PART_TYPES) + 3
+        x = torch.stack(rows) if rows else torch.zeros(0, feature_dim)
+        links = [(a, b) for a, pa in enumerate(pairs) for b, pb in enumerate(pairs) if a != b and set(pa) & set(pb)]
+        return Data(
+            x=x,
+            edge_index=torch.tensor(links, dtype=torch.long).reshape(-1, 2).T,
+            pair=torch.tensor(pairs, dtype=torch.long).reshape(-1, 2),
+            n_objects=len(nodes.labels),
+            object_labels=list(nodes.labels),
+            num_nodes=len(pairs),
+            **targets,
+        )
+
+    def training_graph(self, nodes: SceneNodes, request: set[str]) -> Data:
+        """Labels on the relation nodes of the requested objects (matched to parts) only."""
+        requested = nodes.requested(request)
+        pairs = relation_filter(nodes, self.cfg.distance_filter)
+        labels = torch.tensor([relation_label(nodes, i, j) for i, j in pairs], dtype=torch.long)
+        first = torch.tensor([bool(requested[i]) for i, _ in pairs], dtype=torch.bool)
+        return self.graph(nodes, requested, relation=labels.clamp(min=0), labelled=first & (labels >= 0))
+
+    def fit(self, graphs: list[Data], trainer: pl.Trainer) -> None:
+        graphs = [g for g in graphs if bool(g.labelled.any())]
+        if not graphs:
+            raise ValueError("no training relations")
+        torch.manual_seed(self.seed)
+        self.network = RelationNet(graphs[0].x.shape[1], self.cfg)
+        data = StageDataModule(graphs, self.cfg.batch_size, self.cfg.steps_per_epoch)
+        trainer.fit(RelationModule(self.network, self.cfg.lr), datamodule=data)
+
+    @torch.no_grad()
+    def read(self, graphs: list[Data]) -> list[list[NodeReading]]:
+        """Per object: graspable unless a relation puts something above it; the solution from those relations."""
+        if self.network is None:
+            raise RuntimeError("RelationSolver.read before fit")
+        self.network.eval()
+        readings = []
+        for graph in graphs:
+            predicted = self.network(graph).argmax(-1).tolist() if graph.num_nodes else []
+            above: dict[int, set[str]] = {i: set() for i in range(graph.n_objects)}
+            helps: set[int] = set()
+            for (i, j), relation in zip(graph.pair.tolist(), predicted):
+                if RELATIONS[relation] == "help":
+                    helps.add(i)
+                elif RELATIONS[relation] == "above":
+                    above[i].add(graph.object_labels[j])
+            nodes = []
+            for i in range(graph.n_objects):
+                if i in helps:
+                    nodes.append(NodeReading(0.0, ["help"]))
+                elif above[i]:
+                    nodes.append(NodeReading(0.0, ["move", *" and ".join(sorted(above[i])).split()]))
+                else:
+                    nodes.append(NodeReading(1.0, ["grasp"]))
+            readings.append(nodes)
+        return readings

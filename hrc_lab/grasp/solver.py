@@ -1,0 +1,251 @@
+"""``grasp=gnn_att`` and its baselines: graspability and grasp solutions from the scene graph (Sec. 6.2).
+
+Node features v_i = [f_i, one-hot l_i, g_i] (:mod:`hrc_lab.grasp.graph`) are projected to ``hidden`` units and
+passed through ``layers`` WL-GNN layers (Eq. 6.2, PyG ``GraphConv`` with the Eq. 6.1 edge weights and add
+aggregation: Gamma_i' = ReLU(W1 Gamma_i + W2 sum_j e_ji Gamma_j)); ``gcn_att`` swaps in ``GCNConv`` (degree-normalised
+mean over the node and its neighbours). A linear head gives the graspability P_gra of each node, trained with binary
+cross-entropy on the requested nodes (Eq. 6.3).
+
+The solution decoder reads f' = [Gamma_i, one-hot l_i, P_gra] (Eq. 6.7). With attention (LSTM_Att, Eq. 6.4-6.6),
+f' is projected into ``segments`` segments f'_s; at each step the score h_t^T W_a f'_s (Eq. 6.4) is softmax-normalised
+over the segments (Eq. 6.5) and the weighted sum of the segments is the context (Eq. 6.6), the LSTM's input beside
+the embedding of the previous word (the ground truth in training, the greedy choice at test, starting from
+<start>). The plain ``lstm`` decoder feeds f' itself at every step. Both start from a state computed from f'.
+The thesis trains the decoder on the trained node embeddings; here the two losses are summed and trained in one
+run, with P_gra detached in the decoder input.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import lightning.pytorch as pl
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch import nn
+from torch_geometric.data import Data
+from torch_geometric.loader import DataLoader
+from torch_geometric.nn import GCNConv, GraphConv
+
+from hrc_lab.env.clutter import PART_TYPES
+from hrc_lab.env.clutter_rule import VOCABULARY
+from hrc_lab.grasp.configs import GraspSolverConfig
+from hrc_lab.grasp.graph import scene_graph
+from hrc_lab.grasp.observation import SceneNodes
+from hrc_lab.reasoning.module import StageDataModule
+
+PAD, START, END = "<pad>", "<start>", "<end>"
+MAX_WORDS = 4  # "move b and c"
+
+
+class SolutionVocabulary:
+    """The words of grasp solutions ("grasp", "move b and c", "help") and the control tokens."""
+
+    def __init__(self) -> None:
+        self.words = [PAD, START, END, *(w for w in VOCABULARY if w not in (PAD, START, END))]
+        self.index = {w: i for i, w in enumerate(self.words)}
+        self.max_len = MAX_WORDS + 1
+
+    def __len__(self) -> int:
+        return len(self.words)
+
+    def encode(self, tokens: list[str]) -> list[int]:
+        ids = [self.index[t] for t in tokens] + [self.index[END]]
+        return ids + [self.index[PAD]] * (self.max_len - len(ids))
+
+    def decode(self, ids) -> list[str]:
+        words = []
+        for i in ids:
+            word = self.words[int(i)]
+            if word == END:
+                break
+            words.append(word)
+        return words
+
+
+class AttentionLSTMDecoder(nn.Module):
+    """LSTM_Att (Eq. 6.4-6.7), or a plain LSTM fed f' at every step when ``attention`` is False."""
+
+    def __init__(self, feature_dim: int, vocab: SolutionVocabulary, cfg: GraspSolverConfig) -> None:
+        super().__init__()
+        self.vocab, self.attention, self.segments = vocab, cfg.decoder == "lstm_att", cfg.segments
+        self.word_embedding = nn.Embedding(len(vocab), cfg.word_dim)
+        self.initial_state = nn.Linear(feature_dim, 2 * cfg.lstm_hidden)
+        if self.attention:
+            self.segment_dim = max(8, cfg.hidden // cfg.segments)
+            self.to_segments = nn.Linear(feature_dim, cfg.segments * self.segment_dim)
+            self.w_a = nn.Linear(self.segment_dim, cfg.lstm_hidden, bias=False)  # Eq. 6.4
+            step_dim = self.segment_dim
+        else:
+            step_dim = feature_dim
+        self.cell = nn.LSTMCell(step_dim + cfg.word_dim, cfg.lstm_hidden)
+        self.word_head = nn.Linear(cfg.lstm_hidden, len(vocab))
+
+    def _start(self, features: torch.Tensor):
+        h, c = torch.tanh(self.initial_state(features)).chunk(2, dim=-1)
+        segments = self.to_segments(features).view(len(features), self.segments, -1) if self.attention else None
+        return (h, c), segments
+
+    def _step(self, features, segments, state, word):
+        h, _ = state
+        if self.attention:
+            scores = torch.einsum("bh,bsh->bs", h, self.w_a(segments))  # Eq. 6.4
+            alpha = scores.softmax(dim=-1)  # Eq. 6.5
+            context = torch.einsum("bs,bsd->bd", alpha, segments)  # Eq. 6.6
+        else:
+            context = features
+        state = self.cell(torch.cat([context, self.word_embedding(word)], dim=-1), state)
+        return self.word_head(state[0]), state
+
+    def forward(self, features: torch.Tensor, captions: torch.Tensor) -> torch.Tensor:
+        """Teacher forcing: logits (B, L, vocab) of every word given the previous ground-truth words."""
+        state, segments = self._start(features)
+        previous = torch.cat([torch.full_like(captions[:, :1], self.vocab.index[START]), captions[:, :-1]], dim=1)
+        logits = []
+        for t in range(captions.shape[1]):
+            step, state = self._step(features, segments, state, previous[:, t])
+            logits.append(step)
+        return torch.stack(logits, dim=1)
+
+    @torch.no_grad()
+    def greedy(self, features: torch.Tensor) -> torch.Tensor:
+        state, segments = self._start(features)
+        word = torch.full((len(features),), self.vocab.index[START], dtype=torch.long, device=features.device)
+        out = []
+        for _ in range(self.vocab.max_len):
+            step, state = self._step(features, segments, state, word)
+            word = step.argmax(-1)
+            out.append(word)
+        return torch.stack(out, dim=1)
+
+
+class GraspSolverNet(nn.Module):
+    def __init__(self, node_dim: int, vocab: SolutionVocabulary, cfg: GraspSolverConfig) -> None:
+        super().__init__()
+        self.input = nn.Sequential(nn.LayerNorm(node_dim), nn.Linear(node_dim, cfg.hidden), nn.ReLU())
+        conv = (
+            (lambda: GraphConv(cfg.hidden, cfg.hidden, aggr="add"))
+            if cfg.conv == "graph"
+            else (lambda: GCNConv(cfg.hidden, cfg.hidden))
+        )
+        self.convs = nn.ModuleList(conv() for _ in range(cfg.layers))
+        self.grasp_head = nn.Linear(cfg.hidden, 1)
+        self.decoder = AttentionLSTMDecoder(cfg.hidden + len(PART_TYPES) + 1, vocab, cfg)
+
+    def encode(self, batch) -> tuple[torch.Tensor, torch.Tensor]:
+        """Node embeddings Gamma (Eq. 6.2) and graspability logits (Eq. 6.3)."""
+        gamma = self.input(batch.x)
+        for conv in self.convs:
+            gamma = F.relu(conv(gamma, batch.edge_index, batch.edge_weight))
+        return gamma, self.grasp_head(gamma).squeeze(-1)
+
+    @staticmethod
+    def decoder_input(gamma: torch.Tensor, label: torch.Tensor, p_grasp: torch.Tensor) -> torch.Tensor:
+        """f' = [Gamma_i, l_i, P_gra] (Eq. 6.7)."""
+        return torch.cat([gamma, F.one_hot(label, len(PART_TYPES)).float(), p_grasp.unsqueeze(-1)], dim=-1)
+
+
+class GraspSolverModule(pl.LightningModule):
+    """Binary cross-entropy on graspability (Eq. 6.3) plus the decoder's word cross-entropy, on labelled nodes."""
+
+    def __init__(self, network: GraspSolverNet, lr: float) -> None:
+        super().__init__()
+        self.network = network
+        self.lr = lr
+
+    def training_step(self, batch, batch_idx: int) -> torch.Tensor:
+        gamma, logits = self.network.encode(batch)
+        mask = batch.labelled
+        loss_grasp = F.binary_cross_entropy_with_logits(logits[mask], batch.graspable[mask])
+        f_prime = self.network.decoder_input(gamma, batch.label, torch.sigmoid(logits).detach())[mask]
+        words = self.network.decoder(f_prime, batch.solution[mask])
+        pad = self.network.decoder.vocab.index[PAD]
+        loss_text = F.cross_entropy(words.flatten(0, 1), batch.solution[mask].flatten(), ignore_index=pad)
+        accuracy = ((logits[mask] > 0) == (batch.graspable[mask] > 0.5)).float().mean()
+        n = int(mask.sum())
+        self.log_dict(
+            {"train_loss": loss_grasp + loss_text, "train_loss_grasp": loss_grasp, "train_loss_text": loss_text},
+            on_step=False,
+            on_epoch=True,
+            batch_size=n,
+        )
+        self.log("train_grasp_acc", accuracy, on_step=False, on_epoch=True, batch_size=n)
+        return loss_grasp + loss_text
+
+    def configure_optimizers(self):
+        return torch.optim.Adam(self.parameters(), lr=self.lr)
+
+
+@dataclass
+class NodeReading:
+    """The solver's reading of one node: graspability probability and decoded solution."""
+
+    p_grasp: float
+    solution: list[str]
+
+    @property
+    def graspable(self) -> bool:
+        return self.p_grasp > 0.5
+
+
+class GraspSolver:
+    """Trains the network on labelled scene graphs and reads graspability and solutions off new ones."""
+
+    needs_union_features = False
+
+    def __init__(self, spec, cfg: GraspSolverConfig, seed: int = 0) -> None:
+        self.spec, self.cfg, self.seed = spec, cfg, seed
+        self.vocab = SolutionVocabulary()
+        self.network: GraspSolverNet | None = None
+
+    def graph(self, nodes: SceneNodes, requested: np.ndarray, **targets) -> Data:
+        """The scene graph of Eq. 6.1 with the request flags g_i."""
+        return scene_graph(
+            nodes.features,
+            nodes.labels,
+            nodes.boxes,
+            nodes.image_size,
+            requested,
+            self.cfg.edges,
+            self.cfg.distance_filter,
+            **targets,
+        )
+
+    def training_graph(self, nodes: SceneNodes, request: set[str]) -> Data:
+        """The request flags the detected objects of the requested types; those matched to a part carry its
+        graspability and solution (the others, and false detections, no loss)."""
+        requested = nodes.requested(request)
+        parts = np.maximum(nodes.truth, 0)
+        return self.graph(
+            nodes,
+            requested,
+            graspable=torch.as_tensor(nodes.rule_graspable[parts], dtype=torch.float32),
+            solution=torch.tensor([self.vocab.encode(nodes.rule_solution[p]) for p in parts], dtype=torch.long),
+            labelled=torch.as_tensor(requested & (nodes.truth >= 0)),
+        )
+
+    def fit(self, graphs: list[Data], trainer: pl.Trainer) -> None:
+        """``graphs`` (from :meth:`training_graph`) carry ``graspable``, ``solution`` and ``labelled`` per node."""
+        if not graphs:
+            raise ValueError("no training graphs")
+        torch.manual_seed(self.seed)
+        self.network = GraspSolverNet(graphs[0].x.shape[1], self.vocab, self.cfg)
+        data = StageDataModule(graphs, self.cfg.batch_size, self.cfg.steps_per_epoch)
+        trainer.fit(GraspSolverModule(self.network, self.cfg.lr), datamodule=data)
+
+    @torch.no_grad()
+    def read(self, graphs: list[Data], batch_size: int = 256) -> list[list[NodeReading]]:
+        """Per graph, per node: P_gra and the decoded solution."""
+        if self.network is None:
+            raise RuntimeError("GraspSolver.read before fit")
+        self.network.eval()
+        readings = []
+        for batch in DataLoader(graphs, batch_size=batch_size):
+            gamma, logits = self.network.encode(batch)
+            p = torch.sigmoid(logits)
+            words = self.network.decoder.greedy(self.network.decoder_input(gamma, batch.label, p))
+            for b in range(batch.num_graphs):
+                nodes = (batch.batch == b).nonzero().flatten()
+                readings.append([NodeReading(float(p[i]), self.vocab.decode(words[i])) for i in nodes])
+        return readings

@@ -1,0 +1,119 @@
+"""Ch.6 solver: Eq. 6.1 edge weights on known points, graph features, the solution decoder on a tiny task, and one
+Algorithm 4 iteration."""
+
+import numpy as np
+import pytest
+import torch
+from omegaconf import OmegaConf
+from torch_geometric.loader import DataLoader
+
+from hrc_lab.env.clutter_rule import solution_types
+from hrc_lab.grasp import GRASPS
+from hrc_lab.grasp.configs import GraspSolverConfig
+from hrc_lab.grasp.graph import edge_weights, fully_connected, scene_graph
+from hrc_lab.grasp.iterative import iterate, nearest_of_types
+from hrc_lab.grasp.solver import GraspSolverModule, GraspSolverNet, NodeReading, SolutionVocabulary
+from hrc_lab.registry import ConfigError
+
+
+def test_inverse_distance_weights_follow_eq_6_1():
+    centres = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 2.0]])
+    weights = edge_weights(centres)
+    edges = fully_connected(3).T.tolist()  # (source j, target i)
+    w = {tuple(e): float(x) for e, x in zip(edges, weights)}
+    # into node 0: neighbours at distance 1 (node 1) and 2 (node 2): (1/1, 1/2) / 1.5
+    assert w[(1, 0)] == pytest.approx(2 / 3)
+    assert w[(2, 0)] == pytest.approx(1 / 3)
+    # into node 1: distances 1 (node 0) and sqrt(5) (node 2)
+    assert w[(0, 1)] == pytest.approx(1 / (1 + 1 / np.sqrt(5)))
+    for target in range(3):  # the weights into every node sum to one
+        assert sum(x for (j, i), x in w.items() if i == target) == pytest.approx(1.0)
+
+
+def test_ablation_weights():
+    centres = np.array([[0.0, 0.0], [0.1, 0.0], [0.5, 0.0]])
+    assert edge_weights(centres, "ones").tolist() == [1.0] * 6
+    filtered = {tuple(e): x for e, x in zip(fully_connected(3).T.tolist(), edge_weights(centres, "distance_filter"))}
+    assert filtered[(0, 1)] == 1.0 and filtered[(1, 0)] == 1.0  # 0.1 < 0.16
+    assert filtered[(0, 2)] == 0.0 and filtered[(2, 1)] == 0.0
+
+
+def test_scene_graph_node_features():
+    boxes = np.array([[0, 0, 20, 20], [40, 40, 60, 80]], dtype=np.float32)
+    graph = scene_graph(torch.ones(2, 5), ["b", "c"], boxes, 100, np.array([False, True]))
+    assert graph.x.shape == (2, 5 + 3 + 1)
+    assert graph.x[:, 5:].tolist() == [[0, 1, 0, 0], [0, 0, 1, 1]]  # one-hot label, then the request flag g_i
+    assert graph.edge_index.shape == (2, 2)
+    assert graph.edge_weight.tolist() == [1.0, 1.0]
+
+
+def test_vocabulary_round_trip():
+    vocab = SolutionVocabulary()
+    for tokens in (["grasp"], ["help"], ["move", "b"], ["move", "b", "and", "c"]):
+        assert vocab.decode(vocab.encode(tokens)) == tokens
+
+
+@pytest.mark.parametrize("decoder", ["lstm_att", "lstm"])
+def test_decoder_learns_a_tiny_vocabulary(decoder):
+    """Two graph kinds, told apart by the label of node 0, must decode to two different solutions."""
+    torch.manual_seed(0)
+    cfg = GraspSolverConfig(hidden=32, layers=2, decoder=decoder, lstm_hidden=32)
+    vocab = SolutionVocabulary()
+    texts = {"a": ["move", "b", "and", "c"], "c": ["grasp"]}
+    graphs = []
+    for first in ("a", "c"):
+        graph = scene_graph(
+            torch.zeros(2, 4),
+            [first, "b"],
+            np.array([[0, 0, 10, 10], [20, 0, 30, 10]]),
+            64,
+            np.array([True, False]),
+            graspable=torch.tensor([float(first == "c"), 1.0]),
+            solution=torch.tensor([vocab.encode(texts[first]), vocab.encode(["grasp"])]),
+            labelled=torch.tensor([True, False]),
+        )
+        graphs.append(graph)
+    net = GraspSolverNet(graphs[0].x.shape[1], vocab, cfg)
+    module = GraspSolverModule(net, lr=1e-2)
+    optimiser = module.configure_optimizers()
+    batch = next(iter(DataLoader(graphs, batch_size=2)))
+    module.log_dict = module.log = lambda *a, **k: None
+    for _ in range(150):
+        optimiser.zero_grad()
+        module.training_step(batch, 0).backward()
+        optimiser.step()
+    gamma, logits = net.encode(batch)
+    words = net.decoder.greedy(net.decoder_input(gamma, batch.label, torch.sigmoid(logits)))
+    assert vocab.decode(words[0]) == texts["a"]
+    assert vocab.decode(words[2]) == texts["c"]
+    assert (logits[[0, 2]] > 0).tolist() == [False, True]
+
+
+def test_one_algorithm_4_iteration():
+    """Request a; the reading says "move c"; the nearest c becomes the request and is graspable."""
+    boxes = np.array([[0, 0, 10, 10], [12, 0, 22, 10], [80, 80, 90, 90]], dtype=np.float32)
+    labels = ["a", "c", "c"]
+    assert nearest_of_types(boxes, labels, 0, ["c"]) == [1]
+    assert solution_types(["move", "b", "and", "c"]) == ["b", "c"]
+    calls = []
+
+    def read(mask):
+        calls.append(mask.tolist())
+        return [NodeReading(0.1, ["move", "c"]), NodeReading(0.9, ["grasp"]), NodeReading(0.8, ["grasp"])]
+
+    answer = iterate(read, boxes, labels, "a")
+    assert calls == [[True, False, False], [False, True, False]]
+    assert answer.requests == [[0], [1]] and answer.solutions == [["move", "c"]]
+    assert answer.grasp == 1 and not answer.help
+
+
+def test_help_ends_the_iteration():
+    answer = iterate(lambda mask: [NodeReading(0.2, ["help"])] * 2, np.zeros((2, 4)), ["a", "a"], "a")
+    assert answer.help and answer.grasp is None
+
+
+def test_config_errors_name_the_key():
+    with pytest.raises(ConfigError, match="grasp.edges"):
+        GRASPS.validate(OmegaConf.create({"name": "gnn_att", "edges": "euclid"}))
+    with pytest.raises(ConfigError, match="grasp.name"):
+        GRASPS.validate(OmegaConf.create({"name": "gnn_attention"}))
