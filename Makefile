@@ -1,5 +1,5 @@
 # Shortcuts; each target is one documented command (see README.md).
-.PHONY: install quick test test-all reproduce-ch4 report-ch4 reproduce-ch5 reproduce-data mlflow-ui
+.PHONY: install quick test test-all reproduce-ch4 report-ch4 reproduce-ch5 reproduce-ch6 reproduce-data mlflow-ui
 
 install:
 	bash scripts/install.sh
@@ -27,6 +27,11 @@ reproduce-ch5: install  ## Fig. 5.7 and the planner columns of Table 5.2, then t
 	.venv/bin/hrc-lab experiment=ch5/fig_5_7 hydra/launcher=joblib
 	.venv/bin/hrc-lab experiment=ch5/table_5_2_planner hydra/launcher=joblib
 	.venv/bin/hrc-lab-report ch5_planner
+
+reproduce-ch6: install  ## Table 6.1 and the single-image row of Table 6.2, then the committed report
+	.venv/bin/hrc-lab experiment=ch6/table_6_1 hydra/launcher=joblib
+	.venv/bin/hrc-lab experiment=ch6/table_6_2_single hydra/launcher=joblib
+	.venv/bin/hrc-lab-report ch6_grasp
 
 reproduce-data: install  ## every demonstration set (runs/data/*.hdf5), the videos, then the committed report
 	.venv/bin/hrc-lab experiment=data/collect_ch4 hydra/launcher=joblib

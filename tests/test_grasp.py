@@ -7,11 +7,14 @@ import torch
 from omegaconf import OmegaConf
 from torch_geometric.loader import DataLoader
 
+from hrc_lab.env.clutter import ClutterObject, ClutterScene
 from hrc_lab.env.clutter_rule import solution_types
 from hrc_lab.grasp import GRASPS
 from hrc_lab.grasp.configs import GraspSolverConfig
 from hrc_lab.grasp.graph import edge_weights, fully_connected, scene_graph
 from hrc_lab.grasp.iterative import iterate, nearest_of_types
+from hrc_lab.grasp.observation import SceneNodes
+from hrc_lab.grasp.relation import RELATIONS, RelationSolver, relation_filter, relation_label
 from hrc_lab.grasp.solver import GraspSolverModule, GraspSolverNet, NodeReading, SolutionVocabulary
 from hrc_lab.registry import ConfigError
 
@@ -117,3 +120,41 @@ def test_config_errors_name_the_key():
         GRASPS.validate(OmegaConf.create({"name": "gnn_att", "edges": "euclid"}))
     with pytest.raises(ConfigError, match="grasp.name"):
         GRASPS.validate(OmegaConf.create({"name": "gnn_attention"}))
+
+
+def _nodes(types, boxes, blockers):
+    """SceneNodes for hand-made boxes whose objects are the parts themselves (oracle boxes)."""
+    objects = [
+        ClutterObject(t, np.zeros(3), np.array([1.0, 0, 0, 0]), np.array(b, dtype=np.float32))
+        for t, b in zip(types, boxes)
+    ]
+    scene = ClutterScene(0, np.zeros((100, 100, 3), np.uint8), objects, -np.ones((100, 100), int))
+    return SceneNodes(
+        scene=scene,
+        boxes=np.array(boxes, dtype=np.float32),
+        labels=list(types),
+        features=torch.zeros(len(types), 4),
+        truth=np.arange(len(types)),
+        rule_graspable=np.array([not b for b in blockers]),
+        rule_solution=[["grasp"]] * len(types),
+        rule_blockers=blockers,
+        union_features={(i, j): torch.zeros(4) for i in range(len(types)) for j in range(i + 1, len(types))},
+    )
+
+
+def test_relation_filter_and_labels_of_gvmrn_rf():
+    # b (1) lies on a (0); the two a's (0, 2) do not touch; c (3) is far away
+    nodes = _nodes(
+        ["a", "b", "a", "c"], [[10, 10, 20, 20], [12, 5, 40, 18], [20, 20, 28, 28], [80, 80, 95, 95]], [[1], [], [], []]
+    )
+    pairs = relation_filter(nodes, threshold=0.16)
+    assert (0, 1) in pairs and (1, 0) in pairs and (0, 2) in pairs  # boxes intersect; a's centres 0.13 apart
+    assert all(3 not in pair for pair in pairs)  # c is neither touching nor near
+    assert RELATIONS[relation_label(nodes, 0, 1)] == "above"  # b has to go before a
+    assert RELATIONS[relation_label(nodes, 1, 0)] == "under"
+    assert RELATIONS[relation_label(nodes, 0, 2)] == "none"
+    nodes.rule_blockers = [[2], [], [0], []]  # now the two a's are in each other's way
+    assert RELATIONS[relation_label(nodes, 0, 2)] == "help"
+    graph = RelationSolver(None, GraspSolverConfig()).training_graph(nodes, {"a"})
+    assert graph.x.shape == (len(pairs), 4 + 2 * 3 + 3)
+    assert graph.labelled.tolist() == [pair[0] in (0, 2) for pair in pairs]  # relations of the requested a's only
