@@ -28,9 +28,9 @@ from collections.abc import Iterable
 import numpy as np
 
 from hrc_lab.env.clutter import PART_TYPES, ClutterObject, ClutterScene, ClutterSpec
+from hrc_lab.vocabulary import END, PAD, START
 
 GRASP, HELP, MOVE, AND = "grasp", "help", "move", "and"
-PAD, START, END = "<pad>", "<start>", "<end>"
 VOCABULARY = (PAD, START, END, GRASP, HELP, MOVE, AND, *PART_TYPES)
 
 FINGER_REACH = 1.0  # m above the part's top: the finger (and the gripper above it) comes from far above

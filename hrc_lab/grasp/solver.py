@@ -34,34 +34,16 @@ from hrc_lab.grasp.configs import GraspSolverConfig
 from hrc_lab.grasp.graph import scene_graph
 from hrc_lab.grasp.observation import SceneNodes
 from hrc_lab.reasoning.module import StageDataModule
+from hrc_lab.vocabulary import PAD, START, TokenVocabulary
 
-PAD, START, END = "<pad>", "<start>", "<end>"
 MAX_WORDS = 4  # "move b and c"
 
 
-class SolutionVocabulary:
+class SolutionVocabulary(TokenVocabulary):
     """The words of grasp solutions ("grasp", "move b and c", "help") and the control tokens."""
 
     def __init__(self) -> None:
-        self.words = [PAD, START, END, *(w for w in VOCABULARY if w not in (PAD, START, END))]
-        self.index = {w: i for i, w in enumerate(self.words)}
-        self.max_len = MAX_WORDS + 1
-
-    def __len__(self) -> int:
-        return len(self.words)
-
-    def encode(self, tokens: list[str]) -> list[int]:
-        ids = [self.index[t] for t in tokens] + [self.index[END]]
-        return ids + [self.index[PAD]] * (self.max_len - len(ids))
-
-    def decode(self, ids) -> list[str]:
-        words = []
-        for i in ids:
-            word = self.words[int(i)]
-            if word == END:
-                break
-            words.append(word)
-        return words
+        super().__init__(VOCABULARY, MAX_WORDS + 1)
 
 
 class AttentionLSTMDecoder(nn.Module):

@@ -36,33 +36,15 @@ from hrc_lab.env.assemble_to_order import (
 from hrc_lab.reasoning.chain_sage import SAGEStack
 from hrc_lab.reasoning.configs import SemanticPlannerConfig
 from hrc_lab.reasoning.module import StageDataModule
+from hrc_lab.vocabulary import PAD, START, TokenVocabulary
 
-PAD, START, END = "<pad>", "<start>", "<end>"
 
-
-class Vocabulary:
+class Vocabulary(TokenVocabulary):
     """Words of the semantic plans: part types, positions, Finished, and the control tokens."""
 
     def __init__(self, spec: AssembleToOrderSpec) -> None:
-        self.words = [PAD, START, END, FINISHED, *spec.types, *(f"p{p}" for p in range(1, spec.n_positions + 1))]
-        self.index = {w: i for i, w in enumerate(self.words)}
-        self.max_len = 1 + max(spec.product.values()) + 1  # part, its positions, <end>
-
-    def __len__(self) -> int:
-        return len(self.words)
-
-    def encode(self, tokens: list[str]) -> list[int]:
-        ids = [self.index[t] for t in tokens] + [self.index[END]]
-        return ids + [self.index[PAD]] * (self.max_len - len(ids))
-
-    def decode(self, ids) -> list[str]:
-        words = []
-        for i in ids:
-            word = self.words[int(i)]
-            if word == END:
-                break
-            words.append(word)
-        return words
+        words = [FINISHED, *spec.types, *(f"p{p}" for p in range(1, spec.n_positions + 1))]
+        super().__init__(words, max_len=1 + max(spec.product.values()) + 1)  # part, its positions, <end>
 
 
 def assembly_graph(spec: AssembleToOrderSpec, pairs: list[tuple[str, int]], vocab: Vocabulary, **labels) -> Data:
