@@ -25,8 +25,9 @@ log = logging.getLogger("hrc_lab")
 
 
 def method_of(cfg: DictConfig) -> str:
-    """The method a run compares: the reasoning module, else the motion module, else the grasp module, else "none"."""
-    for group in ("reasoning", "motion", "grasp"):
+    """The method a run compares: the first of its perception, reasoning, motion and grasp modules that is not
+    "none" (a Ch.5 run with a trained action detector is named after the detector, not the planner it feeds)."""
+    for group in ("perception", "reasoning", "motion", "grasp"):
         name = (cfg.get(group) or {}).get("name", "none")
         if name != "none":
             return name

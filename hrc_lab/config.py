@@ -31,7 +31,6 @@ TOP_LEVEL_KEYS = {
     "logger",
     "paths",
 }
-UNIMPLEMENTED_GROUPS = ("perception",)  # only its `none` option exists so far
 
 
 @dataclass
@@ -84,6 +83,7 @@ class ValidatedConfig:
     env: Any
     reasoning: Any
     motion: Any
+    perception: Any
     grasp: Any
     protocol: Any
     logger: LoggerConfig
@@ -104,6 +104,7 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
     from hrc_lab.experiments import PROTOCOLS
     from hrc_lab.grasp import GRASPS
     from hrc_lab.motion import MOTIONS
+    from hrc_lab.perception import PERCEPTIONS
     from hrc_lab.reasoning import REASONERS
 
     unknown = sorted(set(cfg.keys()) - TOP_LEVEL_KEYS - {"hydra"})
@@ -114,19 +115,17 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
     for key, minimum in (("seed", 0), ("num_threads", 1)):
         if not isinstance(cfg.get(key), int) or cfg.get(key) < minimum:
             raise ConfigError(f"{key}: must be an integer >= {minimum}, got {cfg.get(key)!r}")
-    for group in UNIMPLEMENTED_GROUPS:
-        name = (cfg.get(group) or {}).get("name", "none")
-        if name != "none":
-            raise ConfigError(f"{group}.name: '{name}' is not implemented yet (only 'none')")
     _validate_trainer(cfg.trainer)
     reasoning = cfg.get("reasoning")
     motion = cfg.get("motion")
+    perception = cfg.get("perception")
     grasp = cfg.get("grasp")
     return ValidatedConfig(
         raw=cfg,
         env=ENVS.validate(cfg.env),
         reasoning=None if reasoning is None or reasoning.get("name") == "none" else REASONERS.validate(reasoning),
         motion=None if motion is None or motion.get("name") == "none" else MOTIONS.validate(motion),
+        perception=None if perception is None or perception.get("name") == "none" else PERCEPTIONS.validate(perception),
         grasp=None if grasp is None or grasp.get("name") == "none" else GRASPS.validate(grasp),
         protocol=PROTOCOLS.validate(cfg.protocol, "protocol"),
         logger=LOGGERS.validate(cfg.logger),

@@ -71,7 +71,7 @@ def test_ch5_configs_reject_a_wrong_goal_count(compose_config):
         validate_config(compose_config("experiment=ch5/fig_5_7", "env.n_goals=5"))
 
 
-TOOLS = {"data/collect", "data/render_demo"}  # single-scenario jobs; their sweeps have report sections
+TOOLS = {"data/collect", "data/render_demo", "ch5/annotate"}  # single jobs (tools), no report section
 
 
 @pytest.mark.parametrize("experiment", [e for e in EXPERIMENTS if not e.endswith("_quick") and e not in TOOLS])

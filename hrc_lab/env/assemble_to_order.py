@@ -37,6 +37,41 @@ def _default_goals() -> list[list[str]]:
 
 
 @dataclass
+class AssemblyVideoSpec:
+    """Camera, timing and the ranges every generated clip of the cell is sampled from (``env.video``; the
+    videos themselves are made by :mod:`hrc_lab.env.assembly_video`)."""
+
+    width: int = 320
+    height: int = 240
+    fps: int = 15
+    window: int = 45  # frames per action segment (thesis: 45 at 15 FPS)
+    hand_length: list[float] = field(default_factory=lambda: [85.0, 110.0])  # wrist to middle fingertip, px
+    light: list[float] = field(default_factory=lambda: [0.8, 1.15])  # brightness gain of hand and scene
+    speed: list[float] = field(default_factory=lambda: [0.85, 1.15])  # motion time = (0.65 window) / speed
+    fast_speed: list[float] = field(default_factory=lambda: [1.8, 2.4])  # fast sessions: segments 1/speed as long
+    hand_blur: int = 9  # Gaussian kernel of the hand layer (the recipe MediaPipe detects)
+    wobble_px: float = 4.0  # amplitude of the slow path deviation
+    jitter_px: float = 0.7  # per-frame tremor
+    gap_frames: list[int] = field(default_factory=lambda: [4, 10])  # hand out of view after a placement or a screw
+    camera_noise: float = 2.0  # std of per-pixel noise (grey levels)
+
+    def __post_init__(self) -> None:
+        if not (64 <= self.width <= 1920 and 64 <= self.height <= 1080):
+            raise ValueError(f"env.video.width/height must be in 64..1920 x 64..1080, got {self.width}x{self.height}")
+        for key in ("fps", "window"):
+            if getattr(self, key) < 1:
+                raise ValueError(f"env.video.{key} must be >= 1, got {getattr(self, key)}")
+        for key in ("hand_length", "light", "speed", "fast_speed", "gap_frames"):
+            lo_hi = getattr(self, key)
+            if len(lo_hi) != 2 or not 0 < lo_hi[0] <= lo_hi[1]:
+                raise ValueError(f"env.video.{key} must be [low, high] with 0 < low <= high, got {lo_hi}")
+        if self.hand_length[1] > 0.6 * self.height:
+            raise ValueError(f"env.video.hand_length must stay under 60 % of env.video.height, got {self.hand_length}")
+        if self.hand_blur < 1 or self.hand_blur % 2 == 0:
+            raise ValueError(f"env.video.hand_blur must be an odd kernel size >= 1, got {self.hand_blur}")
+
+
+@dataclass
 class AssembleToOrderSpec:
     """Part types and counts, positions, allowed pairs (Table 5.1) and goal configurations; the first ``n_goals``
     goals are in play."""
@@ -48,6 +83,7 @@ class AssembleToOrderSpec:
     )
     goals: list[list[str]] = field(default_factory=_default_goals)
     n_goals: int = 3
+    video: AssemblyVideoSpec = field(default_factory=AssemblyVideoSpec)
 
     def __post_init__(self) -> None:
         if sum(self.product.values()) != self.n_positions:

@@ -20,6 +20,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from hrc_lab.env.clutter import ClutterScene, ClutterSpec
+from hrc_lab.experiments.cache import cached
 from hrc_lab.experiments.context import RunContext
 from hrc_lab.grasp import GRASPS
 from hrc_lab.grasp.detector import detector_cache_key, load_or_train_detector
@@ -28,16 +29,6 @@ from hrc_lab.grasp.observation import SceneNodes, scene_nodes
 from hrc_lab.grasp.solver import GraspSolver
 
 TRAIN, TEST, ITERATIVE = 1, 2, 3  # scene-seed streams
-
-
-def cached(path: Path, build):
-    """Build ``path`` once (under a file lock, so parallel jobs wait for the first one) and return it."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path.with_suffix(".lock"), "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if not path.exists():
-            build(path)
-    return path
 
 
 def scene_set(ctx: RunContext, spec: ClutterSpec, stream: int, count: int) -> list[ClutterScene]:

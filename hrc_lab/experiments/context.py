@@ -24,6 +24,9 @@ class RunContext:
         """An independent, reproducible random stream per purpose (data, folds, test scenarios...)."""
         return np.random.default_rng([self.seed, *stream])
 
-    def trainer(self, prefix: str = "") -> pl.Trainer:
-        """A Lightning Trainer from ``conf/trainer`` logging per-epoch metrics into this run under ``prefix``."""
-        return instantiate(self.cfg.raw.trainer, logger=self.tracker.lightning_logger(prefix), _convert_="all")
+    def trainer(self, prefix: str = "", **overrides) -> pl.Trainer:
+        """A Lightning Trainer from ``conf/trainer`` (``overrides`` replace its keys, e.g. ``max_epochs``) logging
+        per-epoch metrics into this run under ``prefix``."""
+        return instantiate(
+            self.cfg.raw.trainer, logger=self.tracker.lightning_logger(prefix), _convert_="all", **overrides
+        )

@@ -119,6 +119,78 @@ PROTOCOLS.register("ch5_table_5_2_planner", Table52PlannerProtocol, f"{CH5}:tabl
 
 
 @dataclass
+class ActionClipsProtocol:
+    """The generated action clips (Sec. 5.3): ``clips_per_class`` clips of each Table 5.1 action from
+    ``data_seed``, tracked with MediaPipe (hand landmark model ``tracker_complexity``: 0 lite, 1 full) in
+    ``workers`` processes and cached."""
+
+    data_seed: int = 0
+    clips_per_class: int = 24
+    tracker_complexity: int = 0
+    workers: int = 2
+
+    def __post_init__(self) -> None:
+        if self.data_seed < 0:
+            raise ValueError(f"protocol.data_seed must be >= 0, got {self.data_seed}")
+        if self.clips_per_class < 2:
+            raise ValueError(f"protocol.clips_per_class must be >= 2 (train and test), got {self.clips_per_class}")
+        if self.tracker_complexity not in (0, 1):
+            raise ValueError(f"protocol.tracker_complexity must be 0 (lite) or 1 (full), got {self.tracker_complexity}")
+        if self.workers < 1:
+            raise ValueError(f"protocol.workers must be >= 1, got {self.workers}")
+
+
+@dataclass
+class Fig56Protocol(ActionClipsProtocol):
+    """Action detector vs baselines: ``train_fraction`` of every action's clips train, the rest test (thesis
+    0.8 / 0.2); the confusion matrix (Fig. 5.5) is over all clips; latency over ``latency_windows`` windows."""
+
+    train_fraction: float = 0.8
+    latency_windows: int = 50
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not 0 < self.train_fraction < 1:
+            raise ValueError(f"protocol.train_fraction must be in (0, 1), got {self.train_fraction}")
+
+
+@dataclass
+class Table52Protocol(ActionClipsProtocol):
+    """Table 5.2 end to end: ``sessions`` generated assembly sessions at normal speed and ``fast_sessions`` with
+    fast motions, streamed through tracking -> detector -> semantic planner (trained on ``train_ratio`` of the
+    scenarios); the human screws with probability ``p_screw`` at each step."""
+
+    sessions: int = 7
+    fast_sessions: int = 3
+    p_screw: float = 0.3
+    train_ratio: float = 1.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.sessions < 1 or self.fast_sessions < 0:
+            raise ValueError(f"protocol.sessions must be >= 1 and protocol.fast_sessions >= 0, got "
+                             f"{self.sessions}, {self.fast_sessions}")
+        if not 0 <= self.p_screw < 1:
+            raise ValueError(f"protocol.p_screw must be in [0, 1), got {self.p_screw}")
+        if not 0 < self.train_ratio <= 1:
+            raise ValueError(f"protocol.train_ratio must be in (0, 1], got {self.train_ratio}")
+
+
+@dataclass
+class AnnotateProtocol(ActionClipsProtocol):
+    """The pipeline on any video: ``input`` (a file OpenCV reads; null: a generated session) -> ``output`` MP4."""
+
+    input: str | None = None
+    output: str = "runs/annotated.mp4"
+
+
+CH5_PERCEPTION = "hrc_lab.experiments.ch5_perception"
+PROTOCOLS.register("ch5_fig_5_6", Fig56Protocol, f"{CH5_PERCEPTION}:fig_5_6")
+PROTOCOLS.register("ch5_table_5_2", Table52Protocol, f"{CH5_PERCEPTION}:table_5_2")
+PROTOCOLS.register("ch5_annotate", AnnotateProtocol, f"{CH5_PERCEPTION}:annotate_video")
+
+
+@dataclass
 class CollectProtocol:
     """Scripted-expert demonstrations of one robot-cell scenario, written as robomimic-style HDF5; the run also
     measures the expert's success rate, the cell's speed and the change-point segmentation against the labels."""

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 from hrc_lab.env.assemble_to_order import FINISHED, SCREW, AssembleToOrderSpec, parse_assembly, plan_text
 from hrc_lab.reasoning.semantic_planner import Plan, SemanticPlanner
 
-#: PickandPlace(part, position) -> the (part, position) the robot actually placed
-PickAndPlace = Callable[[str, int], tuple[str, int]]
+#: PickandPlace(part, position) -> the (part, position) the robot actually placed, or None if it placed nothing
+PickAndPlace = Callable[[str, int], tuple[str, int] | None]
 
 
 @dataclass
@@ -70,7 +70,9 @@ class SemanticPlannerLoop:
             targets = [t for t in plan.control[1:] if t != FINISHED]
             if targets:
                 event.command = (plan.control[0], int(targets[0][1:]))
-                self.pairs.append(self.robot(*event.command))
+                placed = self.robot(*event.command)
+                if placed is not None:
+                    self.pairs.append(placed)
         else:
             return None
         if self.echo:

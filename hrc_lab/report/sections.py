@@ -64,10 +64,19 @@ TOPICS = {
         "goal configurations (`conf/env/ato.yaml`; the thesis' Fig. 5.4 is not legible in its text).",
         [("ch5/fig_5_7", "fig_5_7"), ("ch5/table_5_2_planner", "table_5_2_planner")],
     ),
+    "ch5_perception": (
+        "Ch.5 hand-centric action detector and the video-to-plan pipeline",
+        "Videos are generated (`hrc_lab/env/assembly_video.py`): a top-down view of our assembly cell with a right "
+        "hand drawn by OpenCV that MediaPipe detects, performing the 18 actions of Table 5.1 along noisy human-like "
+        "paths with varied speed, skin tone, hand size, light and table colour; not the thesis' RealSense recordings "
+        "of a real worker. MediaPipe 0.10.21 (lite landmark model) tracks the hand; every network trains from "
+        "scratch on CPU (no pretrained VGG16).",
+        [("ch5/fig_5_6", "fig_5_6"), ("ch5/table_5_2", "table_5_2")],
+    ),
     "ch6_grasp": (
         "Ch.6 iterative visual grasping: graspability and grasp solutions from detector features",
         "Scenes are rendered in MuJoCo (parts a, b, c dropped with physics, top-down camera; "
-        "`hrc_lab/env/sim/clutter_scene.py`), not the thesis' photos of real parts; labels come from one geometric "
+        "`hrc_lab/env/clutter_scene.py`), not the thesis' photos of real parts; labels come from one geometric "
         "rule for a top-down grasp with a fixed gripper orientation (`hrc_lab/env/clutter_rule.py`), not a human "
         "expert; the detector is a small Faster R-CNN trained from scratch on the rendered scenes, not a "
         "pretrained ResNet-101-FPN.",
@@ -93,6 +102,7 @@ def load_sections() -> None:
         ch3_motion,
         ch4_motion,
         ch4_reasoning,
+        ch5_perception,
         ch5_planner,
         ch6_grasp,
         data,
