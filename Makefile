@@ -1,5 +1,5 @@
 # Shortcuts; each target is one documented command (see README.md).
-.PHONY: install quick test test-all reproduce-ch4 report-ch4 reproduce-ch5 reproduce-ch6 reproduce-data mlflow-ui
+.PHONY: install quick test test-all reproduce-ch4 report-ch4 reproduce-ch5 reproduce-ch5-perception reproduce-ch6 reproduce-data mlflow-ui
 
 install:
 	bash scripts/install.sh
@@ -27,6 +27,11 @@ reproduce-ch5: install  ## Fig. 5.7 and the planner columns of Table 5.2, then t
 	.venv/bin/hrc-lab experiment=ch5/fig_5_7 hydra/launcher=joblib
 	.venv/bin/hrc-lab experiment=ch5/table_5_2_planner hydra/launcher=joblib
 	.venv/bin/hrc-lab-report ch5_planner
+
+reproduce-ch5-perception: install  ## Fig. 5.5/5.6 and Table 5.2 end to end from generated videos, then the report
+	.venv/bin/hrc-lab experiment=ch5/fig_5_6 hydra/launcher=joblib
+	.venv/bin/hrc-lab experiment=ch5/table_5_2 hydra/launcher=joblib
+	.venv/bin/hrc-lab-report ch5_perception
 
 reproduce-ch6: install  ## Table 6.1 and the single-image row of Table 6.2, then the committed report
 	.venv/bin/hrc-lab experiment=ch6/table_6_1 hydra/launcher=joblib
