@@ -37,6 +37,7 @@ from hrc_lab.env.assemble_to_order import (
 )
 from hrc_lab.env.hand_drawing import SKIN_TONES, HandPose, draw_hand
 
+GENERATOR_VERSION = 2  # bump when a change to the drawing or the motions changes the clips (cached data sets)
 TABLE_RGB = ((150, 140, 125), (128, 132, 126), (160, 130, 100), (112, 118, 128))
 PART_RGB = {"o1": (40, 90, 200), "o2": (230, 120, 30), "o3": (40, 160, 70)}
 

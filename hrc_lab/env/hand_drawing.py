@@ -45,7 +45,7 @@ class HandPose:
     def grip_offset(self) -> np.ndarray:
         """Pixel offset from the wrist to the point just beyond the fingertips where a held part sits (pinched by
         the fingertips, so that the camera above sees it)."""
-        return self.to_image(np.array([[-0.08, -1.06 + 0.2 * self.curl]]))[0] - np.asarray(self.wrist, float)
+        return self.to_image(np.array([[-0.08, -1.17 + 0.2 * self.curl]]))[0] - np.asarray(self.wrist, float)
 
     @classmethod
     def holding_at(cls, grip: np.ndarray, length: float, angle: float, curl: float) -> HandPose:

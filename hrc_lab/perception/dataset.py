@@ -17,7 +17,7 @@ from joblib import Parallel, delayed
 from tqdm import tqdm
 
 from hrc_lab.env.assemble_to_order import AssembleToOrderSpec, action_labels
-from hrc_lab.env.assembly_video import AssemblyVideoSpec, render_action_clip
+from hrc_lab.env.assembly_video import GENERATOR_VERSION, AssemblyVideoSpec, render_action_clip
 from hrc_lab.perception.hand_tracking import HandTracker
 from hrc_lab.perception.windows import window_features
 
@@ -104,6 +104,6 @@ def action_set_key(ato: AssembleToOrderSpec, video: AssemblyVideoSpec, clips_per
                    sizes: WindowSizes) -> str:
     """A short hash of everything the cached set depends on."""
     spec = {"ato": asdict(ato), "video": asdict(video), "clips": clips_per_class, "seed": data_seed,
-            "sizes": asdict(sizes)}
+            "sizes": asdict(sizes), "generator": GENERATOR_VERSION}
     spec["ato"].pop("n_goals", None)  # clips do not depend on which goals are in play
     return hashlib.sha1(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:12]
