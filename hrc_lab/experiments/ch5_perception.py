@@ -121,7 +121,7 @@ def shared_detector(ctx: RunContext, data: ActionSet) -> ActionDetector:
     key = hashlib.sha1(json.dumps(identity, sort_keys=True, default=str).encode()).hexdigest()[:12]
 
     def build(path: Path) -> None:
-        detector = train_detector(ctx, data, protocol.data_seed, "detector/")
+        detector = train_detector(ctx, data, protocol.data_seed, "detector")
         torch.save(detector.state_dict(), path)
 
     path = cached(cache_dir(ctx) / f"detector_{key}.pt", build)
@@ -172,7 +172,7 @@ def fig_5_6(ctx: RunContext) -> dict[str, float]:
     cfg, protocol = ctx.cfg.perception, ctx.cfg.protocol
     data = action_set(ctx)
     train, test = stratified_split(data.labels, protocol.train_fraction, ctx.rng(SPLIT))
-    detector = train_detector(ctx, data.subset(train), ctx.seed, "detector/").eval()
+    detector = train_detector(ctx, data.subset(train), ctx.seed, "detector").eval()
     predicted = detector.predict_proba(windows(cfg, data)).argmax(1)
     correct = predicted == data.labels
     confusion = np.zeros((len(data.names),) * 2, dtype=int)
@@ -289,7 +289,7 @@ def table_5_2(ctx: RunContext) -> dict[str, float]:
     everything = scenarios(spec)
     rng = ctx.rng(SESSIONS)
     chosen = rng.permutation(len(everything))[: max(1, round(protocol.train_ratio * len(everything)))]
-    planner = train_planner(ctx, spec, [everything[j] for j in chosen], prefix="planner/")
+    planner = train_planner(ctx, spec, [everything[j] for j in chosen], prefix="planner")
     rows, results = [], {"normal": [], "fast": []}
     total = protocol.sessions + protocol.fast_sessions
     for i in tqdm(range(total), desc=f"sessions {spec.cell}", unit="session"):
@@ -344,7 +344,7 @@ def annotate_video(ctx: RunContext) -> dict[str, float]:
     data = action_set(ctx)
     detector = shared_detector(ctx, data)
     everything = scenarios(spec)
-    planner = train_planner(ctx, spec, everything, prefix="planner/")
+    planner = train_planner(ctx, spec, everything, prefix="planner")
     if protocol.input is None:
         clip, _ = render_session(spec, spec.video, 0, ctx.seed, 0.3, fast=False)
         frames, fps = list(clip.frames), spec.video.fps

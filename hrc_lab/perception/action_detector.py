@@ -147,12 +147,12 @@ class ActionDetector(pl.LightningModule):
 
     @torch.no_grad()
     def _recalibrate_batch_norm(self, loader: DataLoader) -> None:
-        """Precise BatchNorm (Wu & Johnson, 2021): replace the running statistics of the FCN blocks by their average
+        """Precise BatchNorm (Wu & Johnson, 2021): replace the running statistics of every BatchNorm by their average
         over one pass of the training data with the final weights. The running averages lag the changing weights and
         start from a variance of 1, far above that of the first block's features (hand positions move a few percent
         of the image per window), which made eval-mode predictions collapse after short trainings. ``val_acc``
         during training still uses the running averages."""
-        norms = [module for module in self.modules() if isinstance(module, nn.BatchNorm1d)]
+        norms = [module for module in self.modules() if isinstance(module, nn.modules.batchnorm._BatchNorm)]
         if not norms:
             return
         self.eval()

@@ -33,6 +33,7 @@ class ActionDetectorConfig:
     crop_size: int = 64  # px side of the hand crop
     cnn_widths: list[int] = field(default_factory=lambda: [16, 32, 64, 128])  # VGG16: [64, 128, 256, 512, 512]
     cnn_convs: list[int] = field(default_factory=lambda: [2, 2, 2, 2])  # conv3x3 per block; VGG16: [2, 2, 3, 3, 3]
+    cnn_batch_norm: bool = True  # BatchNorm after every conv (VGG16-BN): from scratch, plain VGG barely trains here
     spatial_dim: int = 128  # CNN feature size (a linear layer on the flattened last block)
     frame_size: int = 64  # px side of the downscaled frames (spatial="frames")
     frame_stride: int = 3  # spatial="frames" reads every frame_stride-th frame of the window, ending at the last
@@ -41,7 +42,7 @@ class ActionDetectorConfig:
     lr: float = 1e-3  # AdamW
     weight_decay: float = 1e-4
     batch_size: int = 32
-    epochs: int = 15  # the protocol's Trainer max_epochs
+    epochs: int = 20  # the protocol's Trainer max_epochs
     augment: bool = True  # random shift/scale and brightness of the images, noise on the track (training only)
 
     def __post_init__(self) -> None:

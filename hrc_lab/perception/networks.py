@@ -55,15 +55,17 @@ class PlainLSTM(nn.Module):
 
 
 class VGGStyleCNN(nn.Module):
-    """(B, 3, S, S) RGB in [0, 1] -> (B, spatial_dim) (Eq. 5.2): per block, ``cnn_convs[i]`` conv3x3 + ReLU with
-    ``cnn_widths[i]`` channels then a 2x2 max-pool (VGG16's layout); a linear layer + ReLU on the flattened output."""
+    """(B, 3, S, S) RGB in [0, 1] -> (B, spatial_dim) (Eq. 5.2): per block, ``cnn_convs[i]`` conv3x3 (+ BatchNorm
+    with ``cnn_batch_norm``, the VGG16-BN variant) + ReLU with ``cnn_widths[i]`` channels then a 2x2 max-pool
+    (VGG16's layout); a linear layer + ReLU on the flattened output."""
 
     def __init__(self, cfg: ActionDetectorConfig, size: int) -> None:
         super().__init__()
         layers, channels = [], 3
         for width, convs in zip(cfg.cnn_widths, cfg.cnn_convs):
             for _ in range(convs):
-                layers += [nn.Conv2d(channels, width, 3, padding=1), nn.ReLU()]
+                layers += [nn.Conv2d(channels, width, 3, padding=1)]
+                layers += [nn.BatchNorm2d(width), nn.ReLU()] if cfg.cnn_batch_norm else [nn.ReLU()]
                 channels = width
             layers.append(nn.MaxPool2d(2))
         self.features = nn.Sequential(*layers)
