@@ -369,8 +369,6 @@ def annotate_video(ctx: RunContext) -> dict[str, float]:
 
 
 def read_video(path: Path) -> tuple[list[np.ndarray], int]:
-    if not path.exists():
-        raise FileNotFoundError(f"protocol.input: no video at {path}")
     capture = cv2.VideoCapture(str(path))
     fps = int(round(capture.get(cv2.CAP_PROP_FPS))) or 15
     frames = []

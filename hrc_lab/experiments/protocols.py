@@ -3,6 +3,7 @@ runs, and the rest of the ``protocol`` node is validated against the schema regi
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 from hrc_lab.registry import Registry
@@ -182,6 +183,13 @@ class AnnotateProtocol(ActionClipsProtocol):
 
     input: str | None = None
     output: str = "runs/annotated.mp4"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.input is not None and not os.path.isfile(self.input):
+            raise ValueError(f"protocol.input: no video file at {self.input}")
+        if not self.output.endswith(".mp4"):
+            raise ValueError(f"protocol.output must be an .mp4 path, got {self.output}")
 
 
 CH5_PERCEPTION = "hrc_lab.experiments.ch5_perception"
