@@ -6,7 +6,7 @@ from __future__ import annotations
 import pandas as pd
 from matplotlib.figure import Figure
 
-from hrc_lab.report.runs import mean_std
+from hrc_lab.report.runs import spread
 from hrc_lab.report.sections import Section, register_section
 from hrc_lab.report.thesis import fmt, thesis_results
 
@@ -19,11 +19,6 @@ METHODS = {
 CELLS = ["1goal", "2goals", "3goals"]
 
 
-def _stat(runs: pd.DataFrame, metric: str) -> tuple[float, float]:
-    stats = mean_std(runs, ["method"], metric)
-    return (stats.iloc[0]["mean"], stats.iloc[0]["std"]) if len(stats) else (float("nan"), float("nan"))
-
-
 @register_section("fig_5_6")
 def fig_5_6(runs: pd.DataFrame) -> Section:
     text_ref = thesis_results()["ch5"]["text"]
@@ -33,20 +28,20 @@ def fig_5_6(runs: pd.DataFrame) -> Section:
         part = runs[runs.method == method]
         row = {"method": METHODS[method], "seeds": len(part)}
         for metric, title in (("train_acc", "train"), ("test_acc", "test"), ("all_acc", "all clips (Fig. 5.5)")):
-            mean, std = _stat(part, metric)
+            mean, std = spread(part, metric)
             row[title] = fmt(mean, std, 3)
             records.append({"method": method, "metric": metric, "mean": mean, "std": std})
-        row["classify ms"] = fmt(*_stat(part, "classify_ms"), 1)
+        row["classify ms"] = fmt(*spread(part, "classify_ms"), 1)
         rows.append(row)
     ours = runs[runs.method == "hand_lstm_fcn"]
     latency = ""
     if len(ours):
         latency = (
-            f"Latency on this CPU (ours): MediaPipe tracking {fmt(*_stat(ours, 'tracking_ms_per_frame'), 1)} ms per "
-            f"frame, classification {fmt(*_stat(ours, 'classify_ms'), 1)} ms per window, so "
-            f"{fmt(*_stat(ours, 'latency_window_ms'), 0)} ms from a window's last frame to its action "
+            f"Latency on this CPU (ours): MediaPipe tracking {fmt(*spread(ours, 'tracking_ms_per_frame'), 1)} ms per "
+            f"frame, classification {fmt(*spread(ours, 'classify_ms'), 1)} ms per window, so "
+            f"{fmt(*spread(ours, 'latency_window_ms'), 0)} ms from a window's last frame to its action "
             f"(thesis: {text_ref['detection_latency_ms']} ms average detection time, GPU); tracking every frame of a "
-            f"45-frame window costs {fmt(*_stat(ours, 'latency_window_total_ms'), 0)} ms in total, spread over its 3 s."
+            f"45-frame window costs {fmt(*spread(ours, 'latency_window_total_ms'), 0)} ms in total, over its 3 s."
         )
     n_clips = runs.n_train.iloc[0] + runs.n_test.iloc[0]
     text = [
@@ -96,12 +91,12 @@ def table_5_2(runs: pd.DataFrame) -> Section:
         row = {"goals": goals, "seeds": len(part), "sessions": int(part.n_sessions.sum())}
         for (metric, title), (ref_mean, ref_std) in zip((("ad_acc", "AD %"), ("sg_acc", "SG %"), ("sc_acc", "SC %")),
                                                         ref):
-            mean, std = _stat(part.assign(**{metric: 100 * part[metric]}), metric)
+            mean, std = (100 * v for v in spread(part, metric))
             row[title] = f"{fmt(mean, std, 1)} ({ref_mean} ± {ref_std})"
             records.append({"goals": goals, "metric": metric, "mean": mean, "std": std})
         row["fast sessions"] = int(part.n_fast_sessions.sum())
         for metric, title in (("ad_acc_fast", "AD % fast"), ("sg_acc_fast", "SG % fast"), ("sc_acc_fast", "SC % fast")):
-            mean, std = _stat(part.assign(**{metric: 100 * part[metric]}), metric)
+            mean, std = (100 * v for v in spread(part, metric))
             row[title] = fmt(mean, std, 1)
             records.append({"goals": goals, "metric": metric, "mean": mean, "std": std})
         rows.append(row)
@@ -117,8 +112,8 @@ def table_5_2(runs: pd.DataFrame) -> Section:
         "",
         pd.DataFrame(rows).to_markdown(index=False),
         "",
-        f"Latency on this CPU: MediaPipe {fmt(*_stat(runs, 'tracking_ms_per_frame'), 1)} ms per frame, detector "
-        f"{fmt(*_stat(runs, 'classify_ms'), 1)} ms per window.",
+        f"Latency on this CPU: MediaPipe {fmt(*spread(runs, 'tracking_ms_per_frame'), 1)} ms per frame, detector "
+        f"{fmt(*spread(runs, 'classify_ms'), 1)} ms per window.",
     ]
     first = runs.sort_values(["cell", "seed"]).iloc[0]
     artifacts = {"session_strip.png": (first.run_id, "figures/session_strip.png"),

@@ -8,7 +8,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.report.runs import mean_std  # noqa: E402
+from hrc_lab.report.runs import spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
 
@@ -23,11 +23,6 @@ METHODS = {
 COLUMNS = [("train_grasp_acc", "Train_Acc"), ("oa_1", "one type"), ("oa_2", "two types"), ("oa_3", "three types")]
 
 
-def _cell(runs: pd.DataFrame, method: str, metric: str) -> tuple[float, float]:
-    stats = mean_std(runs[runs.method == method], ["method"], metric)
-    return (stats.iloc[0]["mean"], stats.iloc[0]["std"]) if len(stats) else (float("nan"), float("nan"))
-
-
 @register_section("table_6_1")
 def table_6_1(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch6"]["table_6_1"]
@@ -36,7 +31,7 @@ def table_6_1(runs: pd.DataFrame) -> Section:
     for method in methods:
         row = {"method": METHODS[method]}
         for (metric, title), ref in zip(COLUMNS, thesis[method]):
-            mean, std = _cell(runs, method, metric)
+            mean, std = spread(runs[runs.method == method], metric)
             row[title] = f"{fmt(mean, std, 3)} ({fmt(*ref, 3)})"
             records.append({"method": method, "metric": metric, "mean": mean, "std": std})
         rows.append(row)
@@ -80,7 +75,7 @@ def table_6_2_single(runs: pd.DataFrame) -> Section:
     for method in [m for m in METHODS if m in set(runs.method)]:
         row = {"method": METHODS[method]}
         for count in counts:
-            mean, std = _cell(runs, method, f"acc_{count}")
+            mean, std = spread(runs[runs.method == method], f"acc_{count}")
             ref = thesis["single_image"][thesis["columns"].index(str(count))] if method == "gnn_att" else None
             row[f"{count} objects"] = fmt(mean, std, 3) + (f" ({ref})" if ref is not None else "")
             records.append({"method": method, "objects": count, "mean": mean, "std": std})

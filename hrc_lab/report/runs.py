@@ -42,3 +42,9 @@ def mean_std(frame: pd.DataFrame, by: list[str], metric: str) -> pd.DataFrame:
         return pd.DataFrame(columns=[*by, "mean", "std", "n"])
     grouped = frame.dropna(subset=[metric]).groupby(by)[metric]
     return grouped.agg(mean="mean", std=lambda s: s.std(ddof=0), n="count").reset_index()
+
+
+def spread(frame: pd.DataFrame, metric: str) -> tuple[float, float]:
+    """Mean and standard deviation (ddof=0) of a metric over the rows of ``frame``; NaN when it has no value."""
+    values = frame[metric].dropna() if metric in frame else pd.Series(dtype=float)
+    return (float(values.mean()), float(values.std(ddof=0))) if len(values) else (float("nan"), float("nan"))
