@@ -36,8 +36,8 @@ def train_two_level(ctx: RunContext, env, demos):
 
     classifier = StageClassifier(4, seed=ctx.seed).fit(*classifier_pairs(demos), lambda: ctx.trainer("classifier"))
     pairs = correction_pairs(demos)
-    planner = build_subgoal_planner(ctx.cfg.motion, 4, seed=ctx.seed)
-    planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"))
+    planner = build_subgoal_planner(ctx.cfg.motion, 4, ctx.cfg.protocol.subgoals_per_stage, seed=ctx.seed)
+    planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"), pairs.indices)
     ndp = DynamicPlanner(ctx.cfg.motion.ndp, env.max_joint_step, env.base_position(), seed=ctx.seed)
     ndp.fit(*dynamics_pairs(demos), lambda: ctx.trainer("ndp"))
     return classifier, planner, ndp

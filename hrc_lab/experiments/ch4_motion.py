@@ -33,12 +33,14 @@ def collect_demos(env, n: int, desc: str) -> list:
 def cross_validated_r2(ctx: RunContext, pairs, folds: int) -> float:
     """R^2 of the sub-goal regressor on held-out demonstrations (GroupKFold over demos, uniform over x, y, z)."""
     from hrc_lab.motion.subgoal import build_subgoal_planner
+    from hrc_lab.motion.two_level import DESIGNED_SUBGOALS
 
     scores = []
     for k, (train, test) in enumerate(GroupKFold(folds).split(pairs.x, groups=pairs.groups)):
-        planner = build_subgoal_planner(ctx.cfg.motion, 1 + ctx.cfg.env.slots, seed=ctx.seed)
-        planner.fit(pairs.x[train], pairs.labels[train], pairs.subgoals[train], lambda k=k: ctx.trainer(f"cv{k}"))
-        mean, _ = planner.predict(pairs.x[test], pairs.labels[test])
+        planner = build_subgoal_planner(ctx.cfg.motion, 1 + ctx.cfg.env.slots, DESIGNED_SUBGOALS, seed=ctx.seed)
+        planner.fit(pairs.x[train], pairs.labels[train], pairs.subgoals[train], lambda k=k: ctx.trainer(f"cv{k}"),
+                    pairs.indices[train])
+        mean, _ = planner.predict(pairs.x[test], pairs.labels[test], pairs.indices[test])
         scores.append(r2_score(pairs.subgoals[test], mean))
     return float(np.mean(scores))
 
@@ -46,7 +48,7 @@ def cross_validated_r2(ctx: RunContext, pairs, folds: int) -> float:
 def table_4_2(ctx: RunContext) -> dict[str, float]:
     from hrc_lab.env.sim import make_env
     from hrc_lab.motion.subgoal import DynamicPlanner, build_subgoal_planner
-    from hrc_lab.motion.two_level import dynamics_pairs, package_pairs, run_package
+    from hrc_lab.motion.two_level import DESIGNED_SUBGOALS, dynamics_pairs, package_pairs, run_package
 
     spec, protocol, motion = ctx.cfg.env, ctx.cfg.protocol, ctx.cfg.motion
     train_env = make_env(spec, seed=ctx.seed)
@@ -55,8 +57,8 @@ def table_4_2(ctx: RunContext) -> dict[str, float]:
     pairs = package_pairs(demos)
     r2 = cross_validated_r2(ctx, pairs, protocol.cv_folds)
 
-    planner = build_subgoal_planner(motion, 1 + spec.slots, seed=ctx.seed)
-    planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"))
+    planner = build_subgoal_planner(motion, 1 + spec.slots, DESIGNED_SUBGOALS, seed=ctx.seed)
+    planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"), pairs.indices)
     ndp = DynamicPlanner(motion.ndp, train_env.max_joint_step, train_env.base_position(), seed=ctx.seed)
     ndp.fit(*dynamics_pairs(demos), lambda: ctx.trainer("ndp"))
 

@@ -46,6 +46,10 @@ class SubgoalConfig:
     # the reach tolerance), not from the expert's exact pose; without it the planner is off by ~1 cm there.
     r_jitter_m: float = 0.01
     r_jitter_copies: int = 4
+    # One label per (stage, sub-goal index) instead of per stage: the planner is told which of a stage's sub-goals
+    # it proposes rather than inferring its progress through the stage from r. Not in the thesis; without it our
+    # closed-loop picking sub-goals drift ~1-2 cm above the part (errors in r compound along a stage).
+    label_per_subgoal: bool = False
     ndp: NDPConfig = field(default_factory=NDPConfig)
 
     def __post_init__(self) -> None:
@@ -62,6 +66,7 @@ class SubgoalConfig:
 
 
 MOTIONS.register("tc_vi", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
+MOTIONS.register("tc_vi_indexed", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
 MOTIONS.register("vi", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
 MOTIONS.register("mlp", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
 MOTIONS.register("gpr", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")

@@ -42,23 +42,39 @@ def jitter_r(x: np.ndarray, labels: np.ndarray, subgoals: np.ndarray, std: float
 
 
 class SubgoalPlanner:
-    """s = f(x, l): ``fit`` on (observation, label index, sub-goal) triples, ``predict`` the sub-goal mean and std."""
+    """s = f(x, l): ``fit`` on (observation, label index, sub-goal) triples, ``predict`` the sub-goal mean and std.
 
-    def __init__(self, config: SubgoalConfig, n_labels: int, seed: int = 0) -> None:
+    ``indices`` (the sub-goal's index within its stage, < ``n_subgoals``) are used only with
+    ``config.label_per_subgoal``, which turns every stage label into ``n_subgoals`` labels.
+    """
+
+    def __init__(self, config: SubgoalConfig, n_labels: int, n_subgoals: int = 1, seed: int = 0) -> None:
         self.config = config
         self.n_labels = n_labels
+        self.n_subgoals = n_subgoals
         self.seed = seed
 
-    def _inputs(self, x: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self.x_scale(x), np.eye(self.n_labels)[labels]
+    def _onehot(self, labels: np.ndarray, indices: np.ndarray | None) -> np.ndarray:
+        if not self.config.label_per_subgoal:
+            return np.eye(self.n_labels)[labels]
+        if indices is None:
+            raise ValueError("motion.label_per_subgoal needs the sub-goal index of every pair")
+        if np.any((indices < 0) | (indices >= self.n_subgoals)):
+            raise ValueError(f"sub-goal indices must be in [0, {self.n_subgoals}), got {np.unique(indices)}")
+        return np.eye(self.n_labels * self.n_subgoals)[labels * self.n_subgoals + indices]
+
+    def _inputs(self, x: np.ndarray, labels: np.ndarray, indices: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        return self.x_scale(x), self._onehot(labels, indices)
 
     def fit(self, x: np.ndarray, labels: np.ndarray, subgoals: np.ndarray,
-            trainer_factory: Callable | None = None) -> SubgoalPlanner:
+            trainer_factory: Callable | None = None, indices: np.ndarray | None = None) -> SubgoalPlanner:
         """``x`` ends with r, the lip position (3); see ``SubgoalConfig.r_jitter_m``."""
         cfg = self.config
+        n = len(x)
         x, labels, subgoals = jitter_r(x, labels, subgoals, cfg.r_jitter_m, cfg.r_jitter_copies, self.seed)
+        indices = None if indices is None else np.tile(indices, len(x) // n)
         self.x_scale, self.s_scale = Standardiser(x), Standardiser(subgoals)
-        xs, onehot = self._inputs(x, labels)
+        xs, onehot = self._inputs(x, labels, indices)
         target = self.s_scale(subgoals)
         if cfg.kind == "gpr":
             from sklearn.gaussian_process import GaussianProcessRegressor
@@ -72,7 +88,7 @@ class SubgoalPlanner:
             self.gpr.fit(features[keep], target[keep])
             return self
         torch.manual_seed(self.seed)
-        self.network = TaskConditionedVI(x.shape[1], self.n_labels, cfg.hidden, subgoals.shape[1], cfg.use_labels,
+        self.network = TaskConditionedVI(x.shape[1], onehot.shape[1], cfg.hidden, subgoals.shape[1], cfg.use_labels,
                                          stochastic=cfg.kind == "vi")
         if cfg.kind == "vi":
             def objective(net, xb, lb, sb):
@@ -87,10 +103,11 @@ class SubgoalPlanner:
             cfg.batch_size, trainer_factory)
         return self
 
-    def predict(self, x: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def predict(self, x: np.ndarray, labels: np.ndarray,
+                indices: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         x = np.atleast_2d(x)
         labels = np.atleast_1d(labels)
-        xs, onehot = self._inputs(x, labels)
+        xs, onehot = self._inputs(x, labels, None if indices is None else np.atleast_1d(indices))
         if self.config.kind == "gpr":
             features = np.hstack([xs, onehot]) if self.config.use_labels else xs
             mean, std = self.gpr.predict(features, return_std=True)
@@ -163,8 +180,8 @@ class DynamicPlanner:
         return np.clip(out.numpy(), -1.0, 1.0) * self.max_step
 
 
-def build_subgoal_planner(config: SubgoalConfig, n_labels: int, seed: int = 0) -> SubgoalPlanner:
-    return SubgoalPlanner(config, n_labels, seed)
+def build_subgoal_planner(config: SubgoalConfig, n_labels: int, n_subgoals: int = 1, seed: int = 0) -> SubgoalPlanner:
+    return SubgoalPlanner(config, n_labels, n_subgoals, seed)
 
 
 class StageClassifier:

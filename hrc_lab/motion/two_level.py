@@ -4,7 +4,9 @@ The sub-goal planner proposes a sub-goal from the observation and the task label
 then acts for at most ``max_steps`` control steps (30 in the thesis) until the cup's lip is within ``tolerance``
 of it; the next sub-goal is planned from where the arm ended. Suction is on in a picking stage from its second
 sub-goal on (the cup grips the first top face its lip touches; during the first sub-goal the lip is still leaving
-the part it just released) and through the placing stage, and off once the last placing sub-goal is done.
+the part it just released) and through the placing stage, and off once the last placing sub-goal is done. The
+cell applies a suction command before it moves the arm, so a Ch.3 picking stage, which ends at the top face, is
+followed by one still step with suction on (as the expert does) before the grip is checked.
 
 Labels: Ch.4 (Fig. 4.4) 0 = picking (l_pi), 1 + slot = placing into goal slot; the feature beside r is the
 selected product's position when picking and the box position p when placing. Ch.3 (3.3): the stage label
@@ -24,6 +26,8 @@ import numpy as np
 from hrc_lab.env.sim.cell import PICK, PLACE
 
 RELEASE = np.array([0.0, 0.0, 0.0, -1.0])
+GRIP = np.array([0.0, 0.0, 0.0, 1.0])
+DESIGNED_SUBGOALS = 3  # Ch.4 sub-goals per stage (4.3)
 
 
 # --- training pairs ---------------------------------------------------------------------------------------------
@@ -35,11 +39,12 @@ class SubgoalPairs:
     labels: np.ndarray  # (N,) task label indices
     subgoals: np.ndarray  # (N, 3)
     groups: np.ndarray  # (N,) demo index, for grouped cross-validation
+    indices: np.ndarray  # (N,) the sub-goal's index within its stage
 
 
 def package_pairs(demos) -> SubgoalPairs:
     """Ch.4 pairs (Fig. 4.4): one per designed sub-goal, x = [o_selected or p, r at the sub-goal's start]."""
-    xs, labels, targets, groups = [], [], [], []
+    xs, labels, targets, groups, indices = [], [], [], [], []
     for k, demo in enumerate(demos):
         slot_of = {p: s for p, s in demo.episode["configuration"]}
         positions = demo.obs["object_pos"].reshape(len(demo), -1, 3)
@@ -47,7 +52,7 @@ def package_pairs(demos) -> SubgoalPairs:
             obj, stage = divmod(int(label), 2)
             steps = np.flatnonzero(demo.stage_labels == label)
             feature = positions[steps[0], obj] if stage == PICK else demo.obs["box_pos"][steps[0]]
-            for i in range(3):
+            for i in range(DESIGNED_SUBGOALS):
                 at = steps[demo.subgoal_indices[steps] == i]
                 if len(at) == 0:
                     continue
@@ -55,24 +60,26 @@ def package_pairs(demos) -> SubgoalPairs:
                 labels.append(0 if stage == PICK else 1 + slot_of[obj])
                 targets.append(demo.subgoals[at[0]])
                 groups.append(k)
-    return SubgoalPairs(np.array(xs), np.array(labels), np.array(targets), np.array(groups))
+                indices.append(i)
+    return SubgoalPairs(np.array(xs), np.array(labels), np.array(targets), np.array(groups), np.array(indices))
 
 
 def correction_pairs(demos) -> SubgoalPairs:
     """Ch.3 pairs (3.3): per change-point stage, its re-sampled sub-goals; x = [3 object positions at the stage's
     start, r at the previous sub-goal (the stage's start for the first)], label from the detected stage."""
-    xs, labels, targets, groups = [], [], [], []
+    xs, labels, targets, groups, indices = [], [], [], [], []
     for k, demo in enumerate(demos):
         for (obj, stage, start, _), points in zip(demo.stage_bounds, demo.stage_subgoals):
             objects = demo.obs["object_pos"][start]
             previous = demo.obs["lip_target_pos"][start]
-            for point in points:
+            for i, point in enumerate(points):
                 xs.append(np.concatenate([objects, previous]))
                 labels.append(2 * (obj - 1) + stage)
                 targets.append(point)
                 groups.append(k)
+                indices.append(i)
                 previous = point
-    return SubgoalPairs(np.array(xs), np.array(labels), np.array(targets), np.array(groups))
+    return SubgoalPairs(np.array(xs), np.array(labels), np.array(targets), np.array(groups), np.array(indices))
 
 
 def dynamics_pairs(demos) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -116,14 +123,15 @@ def reach(env, ndp, subgoal: np.ndarray, suction: bool, max_steps: int, toleranc
     return max_steps, True
 
 
-def plan(planner, x: np.ndarray, label: int, timings: list[float]) -> np.ndarray:
+def plan(planner, x: np.ndarray, label: int, index: int, timings: list[float]) -> np.ndarray:
+    """The mean sub-goal for observation ``x``, stage ``label`` and the sub-goal's ``index`` in its stage."""
     start = time.perf_counter()
-    mean, _ = planner.predict(x[None], np.array([label]))
+    mean, _ = planner.predict(x[None], np.array([label]), np.array([index]))
     timings.append((time.perf_counter() - start) * 1e3)
     return mean[0]
 
 
-def run_package(env, planner, ndp, n_subgoals: int = 3, max_steps: int = 30, tolerance: float = 0.008) -> Rollout:
+def run_package(env, planner, ndp, n_subgoals: int = DESIGNED_SUBGOALS, max_steps: int = 30, tolerance: float = 0.008) -> Rollout:
     """One package-to-order trial with ground-truth reasoning outputs (the expert's next product and its slot)."""
     env.reset()
     out = Rollout()
@@ -134,7 +142,7 @@ def run_package(env, planner, ndp, n_subgoals: int = 3, max_steps: int = 30, tol
             for i in range(n_subgoals):
                 feature = env.object_positions()[obj] if stage == PICK else env.box_position()
                 subgoal = plan(planner, np.concatenate([feature, env.lip_target_position()]),
-                               0 if stage == PICK else 1 + slot, out.planning_ms)
+                               0 if stage == PICK else 1 + slot, i, out.planning_ms)
                 steps, fine = reach(env, ndp, subgoal, stage == PLACE or i > 0, max_steps, tolerance)
                 out.steps += steps
                 if not fine:
@@ -173,13 +181,16 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
         objects = env.object_positions().ravel()
         before = out.steps
         for i in range(n_subgoals):
-            subgoal = plan(planner, np.concatenate([objects, env.lip_target_position()]), label,
+            subgoal = plan(planner, np.concatenate([objects, env.lip_target_position()]), label, i,
                            out.planning_ms)
             steps, fine = reach(env, ndp, subgoal, stage == PLACE or i > 0, max_steps, tolerance)
             out.steps += steps
             if not fine:
                 out.failure = "collision" if env.collisions else "horizon"
                 return out, env.object_positions()
+        if stage == PICK:  # the picking stage ends at the top face: hold still one step with suction on
+            env.step(GRIP)
+            out.steps += 1
         if stage == PICK and env.suction.held != obj:
             out.failure = "pick"
             return out, env.object_positions()
