@@ -153,3 +153,21 @@ def test_motion_experiment_end_to_end(experiment, overrides, cli_env, console_sc
                             capture_output=True, text=True, env=cli_env, timeout=300)
     assert result.returncode == 0, result.stderr[-3000:]
     assert "planning_ms=" in result.stderr + result.stdout
+
+
+def test_label_per_subgoal_separates_sub_goals_that_share_an_observation():
+    """Same observation and stage, different sub-goal index: only the per-sub-goal labels can tell them apart."""
+    rng = np.random.default_rng(0)
+    x = np.repeat(rng.normal(size=(8, 6)), 3, axis=0)
+    labels, indices = np.zeros(24, dtype=int), np.tile(np.arange(3), 8)
+    subgoals = np.stack([indices * 0.1, np.zeros(24), np.zeros(24)], axis=1)
+    results = {}
+    for per_subgoal in (False, True):
+        config = SubgoalConfig(kind="mlp", steps=300, r_jitter_m=0.0, label_per_subgoal=per_subgoal)
+        planner = build_subgoal_planner(config, 2, 3).fit(x, labels, subgoals, tiny_trainer, indices)
+        results[per_subgoal] = np.abs(planner.predict(x, labels, indices)[0] - subgoals).max()
+    assert results[True] < 0.02 < 0.05 < results[False]
+    with pytest.raises(ValueError, match="label_per_subgoal"):
+        planner.predict(x, labels)
+    with pytest.raises(ValueError, match=r"\[0, 3\)"):
+        planner.predict(x[:1], labels[:1], np.array([3]))

@@ -108,6 +108,6 @@ class GraspSolverConfig:
 
 
 SOLVER = "hrc_lab.grasp.solver:GraspSolver"
-for _name in ("gnn_att", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att"):
+for _name in ("gnn_att", "gnn_att_oracle", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att"):
     GRASPS.register(_name, GraspSolverConfig, SOLVER)
 GRASPS.register("gvmrn_rf", GraspSolverConfig, "hrc_lab.grasp.relation:RelationSolver")

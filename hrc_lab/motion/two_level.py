@@ -131,7 +131,8 @@ def plan(planner, x: np.ndarray, label: int, index: int, timings: list[float]) -
     return mean[0]
 
 
-def run_package(env, planner, ndp, n_subgoals: int = DESIGNED_SUBGOALS, max_steps: int = 30, tolerance: float = 0.008) -> Rollout:
+def run_package(env, planner, ndp, n_subgoals: int = DESIGNED_SUBGOALS, max_steps: int = 30,
+                tolerance: float = 0.008) -> Rollout:
     """One package-to-order trial with ground-truth reasoning outputs (the expert's next product and its slot)."""
     env.reset()
     out = Rollout()

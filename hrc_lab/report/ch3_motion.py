@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.report.runs import mean_std  # noqa: E402
+from hrc_lab.report.runs import mean_std, spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
 
@@ -30,41 +30,46 @@ CONTROLLERS = {"ndp": "Neural dynamic planner (Δ only)", "ndp_direction": "NDP,
                "actor": "Full-observation actor π(r, s)"}
 
 
+METHODS = {"tc_vi": "the thesis' planner", "tc_vi_indexed": "the same with the sub-goal index in its label"}
+
+
 @register_section("table_3_1")
 def table_3_1(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch3"]["table_3_1"]
     rows, csv = [], []
-    for scenario, colour, (group, key) in ROWS:
-        part = runs[runs.scenario == scenario]
-        if part.empty:
-            continue
-        ref = thesis[group][key]
-        row = {"case": scenario.replace("_", " "), "object": colour}
-        entry = {"scenario": scenario, "object": colour, "seeds": len(part)}
-        for threshold in THRESHOLDS:
-            stats = mean_std(part.assign(all="all"), ["all"], f"sr_{colour}_{threshold}")
-            mean, std = (stats.iloc[0]["mean"], stats.iloc[0]["std"]) if len(stats) else (np.nan, np.nan)
-            row[f"SR δr={threshold}"] = f"{fmt(mean, std)} ({fmt(*ref[f'sr_at_{threshold}'])})"
-            entry |= {f"sr_{threshold}_mean": mean, f"sr_{threshold}_std": std,
-                      f"thesis_sr_{threshold}": ref[f"sr_at_{threshold}"][0]}
-        steps = mean_std(part.assign(all="all"), ["all"], f"steps_{colour}")
-        steps_mean, steps_std = (steps.iloc[0]["mean"], steps.iloc[0]["std"]) if len(steps) else (np.nan, np.nan)
-        row["steps"] = (f"{fmt(steps_mean, steps_std, digits=1)} ({ref['steps_at_0.08'][0]:.1f} / "
-                        f"{ref['steps_at_0.06'][0]:.1f})")
-        entry |= {"steps_mean": steps_mean, "steps_std": steps_std}
-        rows.append(row)
-        csv.append(entry)
-    failures = runs.groupby("scenario")[[c for c in runs.columns if c.startswith("fail_")]].mean().round(2)
+    methods = [m for m in METHODS if m in set(runs.method)] + sorted(set(runs.method) - set(METHODS))
+    for method in methods:
+        for scenario, colour, (group, key) in ROWS:
+            part = runs[(runs.scenario == scenario) & (runs.method == method)]
+            if part.empty:
+                continue
+            ref = thesis[group][key]
+            row = {"planner": method, "case": scenario.replace("_", " "), "object": colour}
+            entry = {"method": method, "scenario": scenario, "object": colour, "seeds": len(part)}
+            for threshold in THRESHOLDS:
+                mean, std = spread(part, f"sr_{colour}_{threshold}")
+                row[f"SR δr={threshold}"] = f"{fmt(mean, std)} ({fmt(*ref[f'sr_at_{threshold}'])})"
+                entry |= {f"sr_{threshold}_mean": mean, f"sr_{threshold}_std": std,
+                          f"thesis_sr_{threshold}": ref[f"sr_at_{threshold}"][0]}
+            steps_mean, steps_std = spread(part, f"steps_{colour}")
+            row["steps"] = (f"{fmt(steps_mean, steps_std, digits=1)} ({ref['steps_at_0.08'][0]:.1f} / "
+                            f"{ref['steps_at_0.06'][0]:.1f})")
+            entry |= {"steps_mean": steps_mean, "steps_std": steps_std}
+            rows.append(row)
+            csv.append(entry)
+    fail_columns = [c for c in runs.columns if c.startswith("fail_")]
+    failures = runs.groupby(["method", "scenario"])[fail_columns].mean().round(2)
     text = [
         "Per-object success rate of the two-level planner (task classifier c(x), task-conditioned VI sub-goal "
         "planner with 5 sub-goals per stage, neural dynamic planner with ≤ 30 steps per sub-goal) correcting the "
         "human's misplacements in the robosuite cell: an object succeeds when it ends within δr of its goal and no "
         "forbidden contact happened. Steps: control steps the robot spent on the object (thesis: at δr 0.08 / 0.06). "
-        f"Mean ± std over seeds {sorted(runs.seed.unique())}; thesis values in brackets.",
+        f"Mean ± std over seeds {sorted(runs.seed.unique())}; thesis values in brackets. Planners: "
+        + "; ".join(f"`{m}` {METHODS.get(m, m)}" for m in methods) + " (not in the thesis: the thesis' planner infers its progress through a stage from r).",
         "",
         pd.DataFrame(rows).to_markdown(index=False) if rows else "(no rows)",
     ]
-    if len(failures.columns):
+    if fail_columns:
         text += ["", "Why trials ended early (share of trials): `pick` the cup did not hold the object after a "
                      "picking stage, `collision` a forbidden contact, `horizon` a sub-goal not reached in time.", "",
                  failures.reset_index().to_markdown(index=False)]
@@ -74,18 +79,24 @@ def table_3_1(runs: pd.DataFrame) -> Section:
                    {"table_3_1.png": _plot_table(pd.DataFrame(csv))} if csv else {})
 
 
-def _plot_table(frame: pd.DataFrame):
+def _plot_table(frame: pd.DataFrame, threshold: str = "0.08"):
+    """Success rate at ``threshold`` per case and object, one bar per planner, the thesis as dashes."""
+    cases = frame.drop_duplicates(["scenario", "object"])[["scenario", "object"]].itertuples(index=False)
+    cases = list(cases)
+    methods = list(dict.fromkeys(frame.method))
+    width = 0.8 / len(methods)
     fig, ax = plt.subplots(figsize=(7, 3.4))
-    labels = [f"{s.replace('_object_', ' obj ')}\n{o}" for s, o in zip(frame.scenario, frame.object)]
-    x = np.arange(len(frame))
-    for k, threshold in enumerate(THRESHOLDS):
-        offset = (k - 0.5) * 0.38
-        ax.bar(x + offset, frame[f"sr_{threshold}_mean"], 0.38, yerr=frame[f"sr_{threshold}_std"], capsize=2,
-               label=f"ours, δr = {threshold} m")
-        ax.scatter(x + offset, frame[f"thesis_sr_{threshold}"], marker="_", s=200, color="black", linewidths=2,
-                   zorder=3)
-    ax.set_xticks(x, labels, fontsize=7)
-    ax.set_ylabel("success rate (dashes: thesis)")
+    x = np.arange(len(cases))
+    for k, method in enumerate(methods):
+        part = frame[frame.method == method].set_index(["scenario", "object"])
+        rows = [part.loc[c] if c in part.index else None for c in cases]
+        mean = [r[f"sr_{threshold}_mean"] if r is not None else np.nan for r in rows]
+        std = [r[f"sr_{threshold}_std"] if r is not None else np.nan for r in rows]
+        ax.bar(x + (k - (len(methods) - 1) / 2) * width, mean, width, yerr=std, capsize=2, label=method)
+    thesis = frame.drop_duplicates(["scenario", "object"])[f"thesis_sr_{threshold}"]
+    ax.scatter(x, thesis, marker="_", s=400, color="black", linewidths=2, zorder=3, label="thesis")
+    ax.set_xticks(x, [f"{s.replace('_object_', ' obj ')}\n{o}" for s, o in cases], fontsize=7)
+    ax.set_ylabel(f"success rate, δr = {threshold} m")
     ax.set_ylim(0, 1.05)
     ax.legend(fontsize=8)
     fig.tight_layout()
