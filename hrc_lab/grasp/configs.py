@@ -48,6 +48,9 @@ class DetectorConfig:
     max_detections: int = 20  # per image
     seed: int = 0  # initialisation, sampling order and flips
     mode: str = "trained"  # "trained": detections; "oracle": ground-truth boxes, features from the same network
+    # > 1: f_i also holds the box-head feature of the box enlarged by this factor about its centre, the
+    # neighbourhood that a deep backbone's receptive field covers (the thesis' ResNet-101; ours is narrow); 0: off
+    context_scale: float = 0.0
 
     def __post_init__(self) -> None:
         for key in ("image_size", "width", "blocks", "fpn_channels", "representation_size", "rpn_post_nms_train",
@@ -70,6 +73,8 @@ class DetectorConfig:
             raise ValueError(f"grasp.detector.anchor_sizes must give as many sizes on every level: {self.anchor_sizes}")
         if not self.aspect_ratios or min(self.aspect_ratios) <= 0:
             raise ValueError(f"grasp.detector.aspect_ratios must be positive, got {self.aspect_ratios}")
+        if self.context_scale != 0 and self.context_scale < 1:
+            raise ValueError(f"grasp.detector.context_scale must be 0 (off) or >= 1, got {self.context_scale}")
         if self.mode not in DETECTOR_MODES:
             raise ValueError(f"grasp.detector.mode must be one of {DETECTOR_MODES}, got '{self.mode}'")
         for key in ("score_threshold", "nms", "agnostic_nms"):

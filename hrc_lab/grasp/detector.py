@@ -402,7 +402,8 @@ def detection_quality(detections: Sequence[Detections], gt_boxes: Sequence, gt_t
 # --- caching ----------------------------------------------------------------------------------------------------
 def detector_cache_key(cfg: DetectorConfig, scene_seeds: Sequence[int]) -> str:
     """A short hash of the config and the (ordered) seeds of the training scenes."""
-    settings = {k: v for k, v in asdict(cfg).items() if k != "mode"}  # oracle and trained share the network
+    # oracle and trained modes, with or without context features, share the network
+    settings = {k: v for k, v in asdict(cfg).items() if k not in ("mode", "context_scale")}
     payload = json.dumps({"cfg": settings, "seeds": [int(s) for s in scene_seeds]}, sort_keys=True)
     return hashlib.sha1(payload.encode()).hexdigest()[:16]
 

@@ -3,7 +3,7 @@ matched to the scene's parts so that the labelling rule can score and label them
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from itertools import combinations
 
 import numpy as np
@@ -40,17 +40,31 @@ def union_box(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.concatenate([np.minimum(a[:2], b[:2]), np.maximum(a[2:], b[2:])])
 
 
+def enlarged_boxes(boxes: np.ndarray, scale: float, image_size: int) -> np.ndarray:
+    """(n, 4) x0, y0, x1, y1 boxes scaled by ``scale`` about their centres, clipped to the image."""
+    boxes = np.asarray(boxes, dtype=np.float32).reshape(-1, 4)
+    centre, half = (boxes[:, :2] + boxes[:, 2:]) / 2, (boxes[:, 2:] - boxes[:, :2]) * scale / 2
+    return np.clip(np.hstack([centre - half, centre + half]), 0, image_size).astype(np.float32)
+
+
 def scene_nodes(
-    spec: ClutterSpec, scenes: list[ClutterScene], detector, mode: str, union_features: bool = False
+    spec: ClutterSpec, scenes: list[ClutterScene], detector, mode: str, union_features: bool = False,
+    context_scale: float = 0.0,
 ) -> list[SceneNodes]:
     """Detections (``mode=trained``) or ground-truth boxes (``oracle``) with box-head features, matched to parts;
-    with ``union_features`` also the feature of every pair's union box (GVMRN_RF)."""
+    with ``union_features`` also the feature of every pair's union box (GVMRN_RF); with ``context_scale`` > 1 each
+    f_i is followed by the feature of its box enlarged by that factor (``grasp.detector.context_scale``)."""
     images = [s.image for s in scenes]
     if mode == "oracle":
         features = detector.features_for_boxes(images, [s.boxes for s in scenes])
         found = [Detections(s.boxes, s.types, np.ones(len(s.objects), np.float32), f) for s, f in zip(scenes, features)]
     else:
         found = detector.detect(images)
+    if context_scale:
+        size = images[0].shape[0]
+        context = detector.features_for_boxes(images, [enlarged_boxes(d.boxes, context_scale, size) for d in found])
+        found = [replace(d, features=torch.cat([torch.as_tensor(d.features).float(), c.float()], dim=-1))
+                 for d, c in zip(found, context)]
     unions = None
     if union_features:
         pairs = [list(combinations(range(len(d.labels)), 2)) for d in found]
