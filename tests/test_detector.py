@@ -122,3 +122,20 @@ def test_load_or_train_detector_caches(tmp_path):
     image = [scenes[0].image]
     assert torch.equal(trained.features_for_boxes(image, [scenes[0].boxes])[0],
                        loaded.features_for_boxes(image, [scenes[0].boxes])[0])
+
+
+def test_context_boxes_are_enlarged_about_the_centre_and_clipped():
+    from hrc_lab.grasp.observation import enlarged_boxes
+
+    boxes = np.array([[20, 20, 30, 40], [0, 0, 10, 10]], np.float32)
+    np.testing.assert_allclose(enlarged_boxes(boxes, 2.0, SIZE), [[15, 10, 35, 50], [0, 0, 15, 15]])
+    np.testing.assert_allclose(enlarged_boxes(boxes, 1.0, SIZE), boxes)
+    assert enlarged_boxes(np.zeros((0, 4)), 1.8, SIZE).shape == (0, 4)
+
+
+def test_context_scale_is_validated_and_shares_the_trained_network():
+    with pytest.raises(ValueError, match="grasp.detector.context_scale"):
+        tiny_config(context_scale=0.5)
+    seeds = [1, 2, 3]
+    assert detector_cache_key(tiny_config(), seeds) == detector_cache_key(tiny_config(context_scale=1.8), seeds)
+    assert detector_cache_key(tiny_config(), seeds) != detector_cache_key(tiny_config(width=8), seeds)
