@@ -65,8 +65,8 @@ def table_3_1(runs: pd.DataFrame) -> Section:
         "human's misplacements in the robosuite cell: an object succeeds when it ends within δr of its goal and no "
         "forbidden contact happened. Steps: control steps the robot spent on the object (thesis: at δr 0.08 / 0.06). "
         f"Mean ± std over seeds {sorted(runs.seed.unique())}; thesis values in brackets. Planners: "
-        + "; ".join(f"`{m}` {METHODS.get(m, m)}" for m in methods) + " (not in the thesis: the thesis' planner infers its progress through a "
-        "stage from r).",
+        + "; ".join(f"`{m}` {METHODS.get(m, m)}" for m in methods)
+        + " (not in the thesis: the thesis' planner infers its progress through a stage from r).",
         "",
         pd.DataFrame(rows).to_markdown(index=False) if rows else "(no rows)",
     ]
