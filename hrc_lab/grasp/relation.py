@@ -121,7 +121,7 @@ class RelationSolver:
             )
             for i, j in pairs
         ]
-        feature_dim = nodes.features.shape[1] + 2 * len(PART_TYPES) + 3
+        feature_dim = self.cfg.detector.representation_size + 2 * len(PART_TYPES) + 3  # union-box f only
         x = torch.stack(rows) if rows else torch.zeros(0, feature_dim)
         links = [(a, b) for a, pa in enumerate(pairs) for b, pb in enumerate(pairs) if a != b and set(pa) & set(pb)]
         return Data(
