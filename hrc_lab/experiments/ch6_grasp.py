@@ -113,8 +113,7 @@ def prepare(ctx: RunContext):
     detector, info = detector_for(ctx, train)
     ctx.tracker.log_metrics({f"detector_{k}": float(v) for k, v in info.items() if isinstance(v, int | float)})
     solver = GRASPS.load(ctx.cfg.raw.grasp.name)(spec, cfg, seed=ctx.seed)
-    train_nodes = scene_nodes(spec, train, detector, cfg.detector.mode, solver.needs_union_features,
-                              cfg.detector.context_scale)
+    train_nodes = scene_nodes(spec, train, detector, cfg.detector, solver.needs_union_features)
     rng = ctx.rng(61)
     requests = [random_request(rng, n.labels or n.scene.types) for n in train_nodes]
     graphs = [solver.training_graph(n, r) for n, r in zip(train_nodes, requests) if r]
@@ -126,8 +125,7 @@ def prepare(ctx: RunContext):
 def table_6_1(ctx: RunContext) -> dict[str, float]:
     spec, protocol, detector, solver, train_acc, seconds = prepare(ctx)
     test_scenes = scene_set(ctx, spec, TEST, protocol.test_images)
-    test = scene_nodes(spec, test_scenes, detector, ctx.cfg.grasp.detector.mode, solver.needs_union_features,
-                       ctx.cfg.grasp.detector.context_scale)
+    test = scene_nodes(spec, test_scenes, detector, ctx.cfg.grasp.detector, solver.needs_union_features)
     rng = ctx.rng(62)
     metrics = {"train_grasp_acc": train_acc, "prepare_s": seconds}
     rows = []
@@ -146,8 +144,7 @@ def table_6_2_single(ctx: RunContext) -> dict[str, float]:
     for count in protocol.object_counts:
         fixed = replace(spec, min_objects=count, max_objects=count)
         scenes = scene_set(ctx, fixed, ITERATIVE * 10 + count, protocol.cases)
-        nodes = scene_nodes(fixed, scenes, detector, ctx.cfg.grasp.detector.mode, solver.needs_union_features,
-                            ctx.cfg.grasp.detector.context_scale)
+        nodes = scene_nodes(fixed, scenes, detector, ctx.cfg.grasp.detector, solver.needs_union_features)
         outcomes = []
         for n in tqdm(nodes, desc=f"Algorithm 4, {count} objects", unit="scene"):
             goal_type = str(rng.choice(sorted(set(n.scene.types))))

@@ -11,6 +11,7 @@ import torch
 
 from hrc_lab.env.clutter import ClutterScene, ClutterSpec
 from hrc_lab.env.clutter_rule import blockers, graspable, solution_tokens
+from hrc_lab.grasp.configs import DetectorConfig
 from hrc_lab.grasp.detector import Detections, match_detections
 
 
@@ -48,21 +49,21 @@ def enlarged_boxes(boxes: np.ndarray, scale: float, image_size: int) -> np.ndarr
 
 
 def scene_nodes(
-    spec: ClutterSpec, scenes: list[ClutterScene], detector, mode: str, union_features: bool = False,
-    context_scale: float = 0.0,
+    spec: ClutterSpec, scenes: list[ClutterScene], detector, reading: DetectorConfig, union_features: bool = False
 ) -> list[SceneNodes]:
-    """Detections (``mode=trained``) or ground-truth boxes (``oracle``) with box-head features, matched to parts;
-    with ``union_features`` also the feature of every pair's union box (GVMRN_RF); with ``context_scale`` > 1 each
-    f_i is followed by the feature of its box enlarged by that factor (``grasp.detector.context_scale``)."""
+    """Detections (``reading.mode`` trained) or ground-truth boxes (``oracle``) with box-head features, matched to
+    parts; with ``reading.context_scale`` > 1 each f_i is followed by the feature of its box enlarged by that
+    factor; with ``union_features`` also the feature of every pair's union box (GVMRN_RF)."""
     images = [s.image for s in scenes]
-    if mode == "oracle":
+    if reading.mode == "oracle":
         features = detector.features_for_boxes(images, [s.boxes for s in scenes])
         found = [Detections(s.boxes, s.types, np.ones(len(s.objects), np.float32), f) for s, f in zip(scenes, features)]
     else:
         found = detector.detect(images)
-    if context_scale:
+    if reading.context_scale:
         size = images[0].shape[0]
-        context = detector.features_for_boxes(images, [enlarged_boxes(d.boxes, context_scale, size) for d in found])
+        context = detector.features_for_boxes(
+            images, [enlarged_boxes(d.boxes, reading.context_scale, size) for d in found])
         found = [replace(d, features=torch.cat([torch.as_tensor(d.features).float(), c.float()], dim=-1))
                  for d, c in zip(found, context)]
     unions = None

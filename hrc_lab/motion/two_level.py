@@ -192,9 +192,9 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
         if stage == PICK:  # the picking stage ends at the top face: hold still one step with suction on
             env.step(GRIP)
             out.steps += 1
-        if stage == PICK and env.suction.held != obj:
-            out.failure = "pick"
-            return out, env.object_positions()
+            if env.suction.held != obj:
+                out.failure = "pick"
+                return out, env.object_positions()
         if stage == PLACE:
             env.step(RELEASE)
             out.steps += 1

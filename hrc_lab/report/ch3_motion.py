@@ -82,20 +82,18 @@ def table_3_1(runs: pd.DataFrame) -> Section:
 
 def _plot_table(frame: pd.DataFrame, threshold: str = "0.08"):
     """Success rate at ``threshold`` per case and object, one bar per planner, the thesis as dashes."""
-    cases = frame.drop_duplicates(["scenario", "object"])[["scenario", "object"]].itertuples(index=False)
-    cases = list(cases)
+    firsts = frame.drop_duplicates(["scenario", "object"])
+    cases = list(zip(firsts.scenario, firsts.object))
     methods = list(dict.fromkeys(frame.method))
     width = 0.8 / len(methods)
     fig, ax = plt.subplots(figsize=(7, 3.4))
     x = np.arange(len(cases))
     for k, method in enumerate(methods):
-        part = frame[frame.method == method].set_index(["scenario", "object"])
-        rows = [part.loc[c] if c in part.index else None for c in cases]
-        mean = [r[f"sr_{threshold}_mean"] if r is not None else np.nan for r in rows]
-        std = [r[f"sr_{threshold}_std"] if r is not None else np.nan for r in rows]
-        ax.bar(x + (k - (len(methods) - 1) / 2) * width, mean, width, yerr=std, capsize=2, label=method)
-    thesis = frame.drop_duplicates(["scenario", "object"])[f"thesis_sr_{threshold}"]
-    ax.scatter(x, thesis, marker="_", s=400, color="black", linewidths=2, zorder=3, label="thesis")
+        part = frame[frame.method == method].set_index(["scenario", "object"]).reindex(cases)
+        ax.bar(x + (k - (len(methods) - 1) / 2) * width, part[f"sr_{threshold}_mean"], width,
+               yerr=part[f"sr_{threshold}_std"], capsize=2, label=method)
+    ax.scatter(x, firsts[f"thesis_sr_{threshold}"], marker="_", s=400, color="black", linewidths=2, zorder=3,
+               label="thesis")
     ax.set_xticks(x, [f"{s.replace('_object_', ' obj ')}\n{o}" for s, o in cases], fontsize=7)
     ax.set_ylabel(f"success rate, δr = {threshold} m")
     ax.set_ylim(0, 1.05)
