@@ -1,6 +1,8 @@
 """Ch.6 solver: Eq. 6.1 edge weights on known points, graph features, the solution decoder on a tiny task, and one
 Algorithm 4 iteration."""
 
+import subprocess
+
 import numpy as np
 import pytest
 import torch
@@ -158,3 +160,21 @@ def test_relation_filter_and_labels_of_gvmrn_rf():
     graph = RelationSolver(None, GraspSolverConfig()).training_graph(nodes, {"a"})
     assert graph.x.shape == (len(pairs), 4 + 2 * 3 + 3)
     assert graph.labelled.tolist() == [pair[0] in (0, 2) for pair in pairs]  # relations of the requested a's only
+
+
+TINY_CH6 = ["hydra.mode=RUN", "trainer.max_epochs=1", "grasp.steps_per_epoch=2", "grasp.detector.steps=2",
+            "grasp.detector.width=4", "grasp.detector.fpn_channels=8", "grasp.detector.representation_size=16",
+            "protocol.train_images=4"]
+
+
+@pytest.mark.parametrize("experiment,overrides", [
+    ("ch6/table_6_1", ["grasp=gnn_att", "protocol.test_images=2"]),
+    ("ch6/table_6_1", ["grasp=gvmrn_rf", "grasp.detector.mode=oracle", "protocol.test_images=2"]),
+    ("ch6/table_6_2_single", ["protocol.object_counts=[3]", "protocol.cases=2"]),
+])
+def test_grasp_experiment_end_to_end(experiment, overrides, cli_env, console_script):
+    """A tiny detector and solver through render -> detect (+ context features) -> graph -> metrics -> MLflow."""
+    result = subprocess.run([console_script("hrc-lab"), f"experiment={experiment}", *TINY_CH6, *overrides],
+                            capture_output=True, text=True, env=cli_env, timeout=300)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert ("oa_1=" if experiment.endswith("6_1") else "acc_3=") in result.stderr + result.stdout

@@ -66,7 +66,8 @@ class AttentionLSTMDecoder(nn.Module):
 
     def _start(self, features: torch.Tensor):
         h, c = torch.tanh(self.initial_state(features)).chunk(2, dim=-1)
-        segments = self.to_segments(features).view(len(features), self.segments, -1) if self.attention else None
+        segments = (self.to_segments(features).view(len(features), self.segments, self.segment_dim)
+                    if self.attention else None)
         return (h, c), segments
 
     def _step(self, features, segments, state, word):
@@ -203,7 +204,8 @@ class GraspSolver:
             nodes,
             requested,
             graspable=torch.as_tensor(nodes.rule_graspable[parts], dtype=torch.float32),
-            solution=torch.tensor([self.vocab.encode(nodes.rule_solution[p]) for p in parts], dtype=torch.long),
+            solution=torch.tensor([self.vocab.encode(nodes.rule_solution[p]) for p in parts],
+                                  dtype=torch.long).reshape(len(parts), self.vocab.max_len),  # also 0 detections
             labelled=torch.as_tensor(requested & (nodes.truth >= 0)),
         )
 
