@@ -35,7 +35,7 @@ def train_two_level(ctx: RunContext, env, demos):
     from hrc_lab.motion.two_level import classifier_pairs, correction_pairs, dynamics_pairs
 
     classifier = StageClassifier(4, seed=ctx.seed).fit(*classifier_pairs(demos), lambda: ctx.trainer("classifier"))
-    pairs = correction_pairs(demos)
+    pairs = correction_pairs(demos, tuple(ctx.cfg.protocol.stage_starts))
     planner = build_subgoal_planner(ctx.cfg.motion, 4, ctx.cfg.protocol.subgoals_per_stage, seed=ctx.seed)
     planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"), pairs.indices)
     ndp = DynamicPlanner(ctx.cfg.motion.ndp, env.max_joint_step, env.base_position(), seed=ctx.seed)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
+from hrc_lab.motion.configs import STAGE_STARTS
 from hrc_lab.registry import Registry
 
 PROTOCOLS = Registry("protocol")
@@ -274,7 +275,8 @@ PROTOCOLS.register("ch4_table_4_2", Table42Protocol, "hrc_lab.experiments.ch4_mo
 class Table31Protocol:
     """Two-level planner on the error-correction cases: ``demos`` expert demonstrations (thesis: 20 per case),
     ``subgoals_per_stage`` re-sampled sub-goals per stage, ``trials`` closed-loop trials scored per object at
-    each threshold in ``thresholds`` (delta_r)."""
+    each threshold in ``thresholds`` (delta_r). ``stage_starts``: where each stage's chain of training pairs
+    begins (``hrc_lab.motion.two_level.correction_pairs``)."""
 
     demos: int = 20
     trials: int = 50
@@ -283,10 +285,14 @@ class Table31Protocol:
     max_steps_per_subgoal: int = 30
     tolerance: float = 0.008
     segmentation_penalty: float = 1e-3
+    stage_starts: list[str] = field(default_factory=lambda: list(STAGE_STARTS))
 
     def __post_init__(self) -> None:
         if self.demos < 1 or self.trials < 1:
             raise ValueError(f"protocol.demos and protocol.trials must be >= 1, got {self.demos}, {self.trials}")
+        if not self.stage_starts or set(self.stage_starts) - set(STAGE_STARTS):
+            raise ValueError(f"protocol.stage_starts must be a non-empty subset of {list(STAGE_STARTS)}, "
+                             f"got {self.stage_starts}")
         if not self.thresholds or any(t <= 0 for t in self.thresholds):
             raise ValueError(f"protocol.thresholds must be positive distances, got {self.thresholds}")
 

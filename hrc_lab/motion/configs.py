@@ -8,6 +8,9 @@ from hrc_lab.registry import Registry
 
 MOTIONS = Registry("motion")
 
+# Where a Ch.3 stage's chain of training pairs begins (hrc_lab.motion.two_level.correction_pairs)
+STAGE_STARTS = ("demonstrated", "executed")
+
 
 @dataclass
 class NDPConfig:

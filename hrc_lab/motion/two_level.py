@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hrc_lab.env.sim.cell import PICK, PLACE
+from hrc_lab.motion.configs import STAGE_STARTS
 
 RELEASE = np.array([0.0, 0.0, 0.0, -1.0])
 GRIP = np.array([0.0, 0.0, 0.0, 1.0])
@@ -64,21 +65,40 @@ def package_pairs(demos) -> SubgoalPairs:
     return SubgoalPairs(np.array(xs), np.array(labels), np.array(targets), np.array(groups), np.array(indices))
 
 
-def correction_pairs(demos) -> SubgoalPairs:
-    """Ch.3 pairs (3.3): per change-point stage, its re-sampled sub-goals; x = [3 object positions at the stage's
-    start, r at the previous sub-goal (the stage's start for the first)], label from the detected stage."""
+def correction_pairs(demos, starts: tuple[str, ...] = STAGE_STARTS) -> SubgoalPairs:
+    """Ch.3 pairs (3.3): per change-point stage, its re-sampled sub-goals, each planned from x = [3 object
+    positions, r at the previous sub-goal], with the label of the detected stage. ``starts`` says where a stage's
+    chain begins; with both, every stage gives two chains with the same targets:
+
+    - ``demonstrated``: objects and the demonstrator's lip at the detected stage start. The change point falls
+      after the expert has moved on (the lip leads the measured end effector by one step, a placed part is
+      already lifted), so this r is 3-7 cm above where the previous stage ended.
+    - ``executed``: as the closed loop starts the stage: r at the previous stage's last sub-goal, the objects at
+      rest as they were when the part's picking stage began.
+
+    Alone, the first misses the closed loop's starts and the second ties r to the part's position (every chain
+    starts exactly at the part, so the two inputs are interchangeable and a grip 1 cm off the centre sends the
+    plan elsewhere); reports/ch3_motion.md measures both.
+    """
+    if not starts or set(starts) - set(STAGE_STARTS):
+        raise ValueError(f"stage starts must be a non-empty subset of {STAGE_STARTS}, got {list(starts)}")
     xs, labels, targets, groups, indices = [], [], [], [], []
     for k, demo in enumerate(demos):
+        ended = demo.obs["lip_target_pos"][demo.stage_bounds[0][2]] if len(demo.stage_bounds) else None
         for (obj, stage, start, _), points in zip(demo.stage_bounds, demo.stage_subgoals):
-            objects = demo.obs["object_pos"][start]
-            previous = demo.obs["lip_target_pos"][start]
-            for i, point in enumerate(points):
-                xs.append(np.concatenate([objects, previous]))
-                labels.append(2 * (obj - 1) + stage)
-                targets.append(point)
-                groups.append(k)
-                indices.append(i)
-                previous = point
+            if stage == PICK:
+                at_rest = demo.obs["object_pos"][start]
+            chains = {"demonstrated": (demo.obs["object_pos"][start], demo.obs["lip_target_pos"][start]),
+                      "executed": (at_rest, ended)}
+            for objects, previous in (chains[name] for name in starts):
+                for i, point in enumerate(points):
+                    xs.append(np.concatenate([objects, previous]))
+                    labels.append(2 * (obj - 1) + stage)
+                    targets.append(point)
+                    groups.append(k)
+                    indices.append(i)
+                    previous = point
+            ended = points[-1]
     return SubgoalPairs(np.array(xs), np.array(labels), np.array(targets), np.array(groups), np.array(indices))
 
 
