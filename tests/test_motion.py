@@ -171,3 +171,31 @@ def test_label_per_subgoal_separates_sub_goals_that_share_an_observation():
         planner.predict(x, labels)
     with pytest.raises(ValueError, match=r"\[0, 3\)"):
         planner.predict(x[:1], labels[:1], np.array([3]))
+
+
+def test_correction_pairs_start_each_stage_as_demonstrated_and_as_executed():
+    """A picking stage (steps 0-3) then a placing stage (steps 4-8) of object 1 (blue), two sub-goals each."""
+    from types import SimpleNamespace
+
+    steps = np.arange(10, dtype=float)[:, None]
+    objects = np.hstack([np.zeros((10, 3)), steps * [0, 0, 0.01] + [0.1, 0.2, 0.8], np.ones((10, 3))])
+    lip = steps * [0.01, 0, 0] + [0, 0, 1.0]
+    points = np.array([[[0, 0, 0.9], [0.1, 0.2, 0.82]], [[0.1, 0.3, 0.9], [0.1, 0.4, 0.82]]])
+    demo = SimpleNamespace(obs={"object_pos": objects, "lip_target_pos": lip},
+                           stage_bounds=np.array([[1, 0, 0, 4], [1, 1, 4, 9]]), stage_subgoals=points)
+    executed = correction_pairs([demo], ("executed",))
+    demonstrated = correction_pairs([demo], ("demonstrated",))
+    both = correction_pairs([demo])
+    assert len(both.x) == len(executed.x) + len(demonstrated.x) == 8
+    assert list(executed.labels) == [0, 0, 1, 1] and list(executed.indices) == [0, 1, 0, 1]
+    # placing, as executed: from the picking stage's last sub-goal, with the objects as they were before the lift
+    np.testing.assert_allclose(executed.x[2, 9:], points[0, 1])
+    np.testing.assert_allclose(executed.x[2, :9], objects[0])
+    # placing, as demonstrated: the lip and the (lifted) objects at the detected change point
+    np.testing.assert_allclose(demonstrated.x[2, 9:], lip[4])
+    np.testing.assert_allclose(demonstrated.x[2, :9], objects[4])
+    for pairs in (executed, demonstrated):  # within a stage, r is the previous sub-goal
+        np.testing.assert_allclose(pairs.x[3, 9:], points[1, 0])
+        np.testing.assert_allclose(pairs.subgoals, points.reshape(-1, 3))
+    with pytest.raises(ValueError, match="stage starts"):
+        correction_pairs([demo], ("planned",))
