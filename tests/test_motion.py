@@ -13,7 +13,7 @@ import torch
 
 from hrc_lab.env.settings import ErrorCorrectionConfig, PackageToOrderConfig
 from hrc_lab.env.sim import make_env
-from hrc_lab.motion.configs import NDPConfig, SubgoalConfig
+from hrc_lab.motion.configs import STAGE_STARTS, NDPConfig, SubgoalConfig
 from hrc_lab.motion.networks import NeuralDynamicPlanner, TaskConditionedVI, variational_loss
 from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier, base_frame, build_subgoal_planner, jitter_r
 from hrc_lab.motion.two_level import (
@@ -185,7 +185,7 @@ def test_correction_pairs_start_each_stage_as_demonstrated_and_as_executed():
                            stage_bounds=np.array([[1, 0, 0, 4], [1, 1, 4, 9]]), stage_subgoals=points)
     executed = correction_pairs([demo], ("executed",))
     demonstrated = correction_pairs([demo], ("demonstrated",))
-    both = correction_pairs([demo])
+    both = correction_pairs([demo], STAGE_STARTS)
     assert len(both.x) == len(executed.x) + len(demonstrated.x) == 8
     assert list(executed.labels) == [0, 0, 1, 1] and list(executed.indices) == [0, 1, 0, 1]
     # placing, as executed: from the picking stage's last sub-goal, with the objects as they were before the lift

@@ -285,7 +285,7 @@ class Table31Protocol:
     max_steps_per_subgoal: int = 30
     tolerance: float = 0.008
     segmentation_penalty: float = 1e-3
-    stage_starts: list[str] = field(default_factory=lambda: list(STAGE_STARTS))
+    stage_starts: list[str] = field(default_factory=lambda: ["demonstrated"])
 
     def __post_init__(self) -> None:
         if self.demos < 1 or self.trials < 1:
