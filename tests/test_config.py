@@ -85,6 +85,8 @@ def test_every_experiment_has_a_report_section_and_topic(compose_config, experim
     assert (cfg.name, cfg.table) in {part for *_, parts in TOPICS.values() for part in parts}
 
 
-def test_table_3_1_rejects_an_unknown_stage_start(compose_config):
+def test_table_3_1_rejects_an_unknown_stage_start_or_a_negative_placement_noise(compose_config):
     with pytest.raises(ConfigError, match=r"protocol\.stage_starts"):
         validate_config(compose_config("experiment=ch3/table_3_1", "protocol.stage_starts=[planned]"))
+    with pytest.raises(ConfigError, match=r"protocol\.placement_noise"):
+        validate_config(compose_config("experiment=ch3/table_3_1", "protocol.placement_noise=-0.01"))

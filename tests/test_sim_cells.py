@@ -137,3 +137,23 @@ def test_make_env_from_configs():
     assert isinstance(env, PackageToOrder) and env.case == 2 and env.horizon == 50
     env = make_env(ErrorCorrectionConfig(task="two_object", sim=SimSettings(success_threshold=0.08)), seed=0)
     assert isinstance(env, ErrorCorrection) and env.success_threshold == 0.08
+
+
+def test_placement_noise_moves_the_experts_placing_stage_and_only_it(ec):
+    """With placement_noise the expert aims its whole placing stage at one point around the goal (x-y only);
+    without it, at the goal; picking is unaffected."""
+    from hrc_lab.env.sim.cell import PICK, PLACE
+
+    ec.reset()
+    obj = ec.plan[0]
+    exact, noisy = ScriptedExpert(ec), ScriptedExpert(ec, placement_noise=0.02)
+    np.testing.assert_allclose(exact.designed_subgoals(obj, PICK), noisy.designed_subgoals(obj, PICK))
+    goal_top = ec.goals[obj] + [0, 0, ec.cell_objects[obj].half_size[2]]
+    np.testing.assert_allclose(exact.designed_subgoals(obj, PLACE)[2], goal_top + [0, 0, 0.003])
+    shifts = np.array([noisy.designed_subgoals(obj, PLACE) - exact.designed_subgoals(obj, PLACE)
+                       for _ in range(200)])
+    assert np.allclose(shifts, shifts[:, :1])  # one shift for all three sub-goals of a stage
+    assert np.allclose(shifts[..., 2], 0.0)
+    assert 0.015 < shifts[:, 0, :2].std() < 0.025
+    with pytest.raises(ValueError, match="placement_noise"):
+        ScriptedExpert(ec, placement_noise=-0.01)

@@ -276,7 +276,8 @@ class Table31Protocol:
     """Two-level planner on the error-correction cases: ``demos`` expert demonstrations (thesis: 20 per case),
     ``subgoals_per_stage`` re-sampled sub-goals per stage, ``trials`` closed-loop trials scored per object at
     each threshold in ``thresholds`` (delta_r). ``stage_starts``: where each stage's chain of training pairs
-    begins (``hrc_lab.motion.two_level.correction_pairs``)."""
+    begins (``hrc_lab.motion.two_level.correction_pairs``). ``placement_noise``: std (m, per x-y axis) of the
+    expert's aim around each goal when it places a part (``hrc_lab.env.sim.expert.ScriptedExpert``)."""
 
     demos: int = 20
     trials: int = 50
@@ -286,8 +287,11 @@ class Table31Protocol:
     tolerance: float = 0.008
     segmentation_penalty: float = 1e-3
     stage_starts: list[str] = field(default_factory=lambda: ["demonstrated"])
+    placement_noise: float = 0.0
 
     def __post_init__(self) -> None:
+        if self.placement_noise < 0:
+            raise ValueError(f"protocol.placement_noise must be >= 0 m, got {self.placement_noise}")
         if self.demos < 1 or self.trials < 1:
             raise ValueError(f"protocol.demos and protocol.trials must be >= 1, got {self.demos}, {self.trials}")
         if not self.stage_starts or set(self.stage_starts) - set(STAGE_STARTS):
