@@ -140,13 +140,14 @@ def test_make_env_from_configs():
 
 
 def test_placement_noise_moves_the_experts_placing_stage_and_only_it(ec):
-    """With placement_noise the expert aims its whole placing stage at one point around the goal (x-y only);
-    without it, at the goal; picking is unaffected."""
+    """With placement_noise the expert aims its whole placing stage at one point around the goal (x-y only), drawn
+    from its own generator (the scene's is untouched); without it, at the goal; picking is unaffected."""
     from hrc_lab.env.sim.cell import PICK, PLACE
 
     ec.reset()
     obj = ec.plan[0]
-    exact, noisy = ScriptedExpert(ec), ScriptedExpert(ec, placement_noise=0.02)
+    exact, noisy = ScriptedExpert(ec), ScriptedExpert(ec, placement_noise=0.02, rng=np.random.default_rng(0))
+    scene_rng = ec.np_random.bit_generator.state
     np.testing.assert_allclose(exact.designed_subgoals(obj, PICK), noisy.designed_subgoals(obj, PICK))
     goal_top = ec.goals[obj] + [0, 0, ec.cell_objects[obj].half_size[2]]
     np.testing.assert_allclose(exact.designed_subgoals(obj, PLACE)[2], goal_top + [0, 0, 0.003])
@@ -155,5 +156,8 @@ def test_placement_noise_moves_the_experts_placing_stage_and_only_it(ec):
     assert np.allclose(shifts, shifts[:, :1])  # one shift for all three sub-goals of a stage
     assert np.allclose(shifts[..., 2], 0.0)
     assert 0.015 < shifts[:, 0, :2].std() < 0.025
+    assert ec.np_random.bit_generator.state == scene_rng
     with pytest.raises(ValueError, match="placement_noise"):
         ScriptedExpert(ec, placement_noise=-0.01)
+    with pytest.raises(ValueError, match="rng"):
+        ScriptedExpert(ec, placement_noise=0.02)

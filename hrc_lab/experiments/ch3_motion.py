@@ -12,14 +12,15 @@ from hrc_lab.experiments.context import RunContext
 COLOURS = {1: "blue", 2: "red"}
 
 
-def correction_demos(env, n: int, protocol, desc: str, placement_noise: float = 0.0) -> list:
+def correction_demos(env, n: int, protocol, desc: str, placement_noise: float = 0.0,
+                     rng: np.random.Generator | None = None) -> list:
     """Expert demonstrations with their change-point stages and ``protocol.subgoals_per_stage`` re-sampled
-    sub-goals per stage (3.3); the expert aims its placements with ``placement_noise`` (m)."""
+    sub-goals per stage (3.3); the expert aims its placements with ``placement_noise`` (m) drawn from ``rng``."""
     from hrc_lab.data.segmentation import stage_subgoals
     from hrc_lab.env.sim.expert import ScriptedExpert
     from hrc_lab.experiments.collect import record_episode
 
-    expert, demos = ScriptedExpert(env, placement_noise=placement_noise), []
+    expert, demos = ScriptedExpert(env, placement_noise=placement_noise, rng=rng), []
     for _ in tqdm(range(n), desc=desc, unit="demo"):
         demo = record_episode(env, expert)
         demo.stage_bounds, demo.stage_subgoals = stage_subgoals(
@@ -49,7 +50,8 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
 
     config, protocol = ctx.cfg.env, ctx.cfg.protocol
     env = make_env(config, seed=ctx.seed)
-    demos = correction_demos(env, protocol.demos, protocol, f"demos {config.cell}", protocol.placement_noise)
+    demos = correction_demos(env, protocol.demos, protocol, f"demos {config.cell}", protocol.placement_noise,
+                             ctx.rng(5))
     classifier, planner, ndp = train_two_level(ctx, env, demos)
     test = make_env(config, seed=1000 + ctx.seed)
     rows = []
