@@ -20,11 +20,14 @@ datasets are ours.
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
 import numpy as np
+
+from hrc_lab.data.files import DataFileError, existing_file, reading
 
 OBS_KEYS = ("robot0_joint_pos", "robot0_eef_pos", "lip_target_pos", "object_pos", "object_yaw", "goal_pos", "held",
             "box_pos")
@@ -99,23 +102,62 @@ class DemoWriter:
 
 
 def read_demos(path: str | Path, successful_only: bool = False) -> tuple[list[Demo], dict]:
-    """All demos of a file (in order) and its ``env_args``."""
-    with h5py.File(path, "r") as f:
-        env_args = json.loads(f["data"].attrs["env_args"])
-        keep = {n.decode() for n in f["mask/success"][()]} if successful_only else None
-        names = sorted(f["data"].keys(), key=lambda n: int(n.split("_")[1]))
-        demos = []
-        for name in names:
-            if keep is not None and name not in keep:
-                continue
-            g = f["data"][name]
-            demos.append(
-                Demo(
-                    obs={k: g["obs"][k][()] for k in g["obs"]},
-                    **{k: g[k][()] for k in DATASETS},
-                    success=name in {n.decode() for n in f["mask/success"][()]},
-                    model_file=g.attrs["model_file"],
-                    episode=json.loads(g.attrs["episode"]),
-                )
-            )
+    """All demos of a file (in order) and its ``env_args``; :class:`DataFileError` when the file is missing,
+    unreadable or lacks what :class:`DemoWriter` writes."""
+    path = existing_file(path)
+    with reading(path, "HDF5 file"), h5py.File(path, "r") as f:
+        data = _member(path, f, "data", "; was it written by hrc_lab's collect job?")
+        if "env_args" not in data.attrs:
+            raise DataFileError(f"{path}: no data.attrs['env_args']; was it written by hrc_lab's collect job?")
+        env_args = _json(path, data.attrs["env_args"], "data.attrs['env_args']")
+        successful = {n.decode() for n in _member(path, f, "mask/success", " (the names of the successful demos)")[()]}
+        demos = [
+            _read_demo(path, data[name], name in successful)
+            for name in _demo_names(path, data)
+            if not successful_only or name in successful
+        ]
     return demos, env_args
+
+
+def _member(path: Path, group: h5py.Group, key: str, hint: str = "") -> h5py.Group | h5py.Dataset:
+    """``group[key]``, or :class:`DataFileError` naming what is missing (``hint`` ends the sentence)."""
+    if key not in group:
+        where = f"{group.name.lstrip('/')} has" if group.name != "/" else "the file has"
+        raise DataFileError(f"{path}: {where} no '{key}'{hint}")
+    return group[key]
+
+
+def _attr(path: Path, group: h5py.Group, key: str):
+    """``group.attrs[key]``, or :class:`DataFileError` naming the attribute."""
+    if key not in group.attrs:
+        raise DataFileError(f"{path}: {group.name.lstrip('/')} has no attribute '{key}'")
+    return group.attrs[key]
+
+
+def _json(path: Path, text, where: str):
+    """The JSON value ``text`` read from ``where`` in the file."""
+    try:
+        return json.loads(text)
+    except (TypeError, ValueError) as err:
+        raise DataFileError(f"{path}: {where} is not valid JSON") from err
+
+
+def _demo_names(path: Path, data: h5py.Group) -> list[str]:
+    """The ``demo_<k>`` groups under ``data``, by k."""
+    names = list(data.keys())
+    wrong = [n for n in names if not re.fullmatch(r"demo_\d+", n)]
+    if wrong:
+        raise DataFileError(f"{path}: data/{wrong[0]} is not a demo_<k> group")
+    return sorted(names, key=lambda n: int(n.split("_")[1]))
+
+
+def _read_demo(path: Path, g: h5py.Group, success: bool) -> Demo:
+    """One ``data/demo_<k>`` group as a :class:`Demo`."""
+    obs = _member(path, g, "obs")
+    return Demo(
+        obs={k: obs[k][()] for k in obs},
+        **{k: _member(path, g, k)[()] for k in DATASETS},
+        success=success,
+        model_file=_attr(path, g, "model_file"),
+        episode=_json(path, _attr(path, g, "episode"), f"{g.name.lstrip('/')}.attrs['episode']"),
+    )

@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from hrc_lab.data.files import DataFileError, read_npz
 from hrc_lab.env.clutter import PART_TYPES, ClutterObject, ClutterScene, ClutterSpec
 from hrc_lab.env.clutter_rule import part_corners, rotation_matrix
 
@@ -59,6 +60,9 @@ SHADE_RANGE = (0.8, 1.1)  # per-part brightness factor
 CHANNEL_JITTER = 0.05  # per-part, per-channel colour offset
 LIGHT_SHIFT = 0.25  # m: the key light moves within +-this (x and y) 1.2 m above the table
 LIGHT_RANGE = (0.45, 0.75)  # its diffuse strength
+
+SCENE_ARRAYS = ("seeds", "images", "segmentations", "n_objects", "resting", "object_type", "object_position",
+                "object_quaternion", "object_box", "spec")  # what save_scenes writes (object_scene: unread)
 
 REDRAWN: collections.Counter = collections.Counter()  # reason -> scenes redrawn in this process
 
@@ -112,14 +116,17 @@ def save_scenes(path: str | Path, scenes: list[ClutterScene], spec: ClutterSpec 
 
 
 def load_scenes(path: str | Path, spec: ClutterSpec | None = None) -> list[ClutterScene]:
-    """The scenes of a :func:`save_scenes` file; with ``spec``, raise ValueError if the file was saved with another."""
-    with np.load(Path(path), allow_pickle=False) as data:
-        saved = json.loads(str(data["spec"]) or "{}")
-        if spec is not None and saved:
-            differ = sorted(k for k, v in asdict(spec).items() if json.loads(json.dumps(v)) != saved.get(k))
-            if differ:
-                raise ValueError(f"{path} holds scenes of another env spec (env.{', env.'.join(differ)} differ)")
-        arrays = {k: data[k] for k in data.files}  # each access to an npz member decompresses it again
+    """The scenes of a :func:`save_scenes` file; :class:`DataFileError` when it is missing, unreadable, lacks an
+    array or (with ``spec``) was saved with another spec."""
+    arrays = read_npz(path, SCENE_ARRAYS)
+    try:
+        saved = json.loads(str(arrays["spec"]) or "{}")
+    except ValueError as err:
+        raise DataFileError(f"{path}: its 'spec' array is not the JSON of an env spec") from err
+    if spec is not None and saved:
+        differ = sorted(k for k, v in asdict(spec).items() if json.loads(json.dumps(v)) != saved.get(k))
+        if differ:
+            raise DataFileError(f"{path}: holds scenes of another env spec (env.{', env.'.join(differ)} differ)")
     scenes, start = [], 0
     for k, n in enumerate(arrays["n_objects"]):
         n = int(n)

@@ -24,6 +24,7 @@ import torch
 from matplotlib.figure import Figure
 from tqdm import tqdm
 
+from hrc_lab.data.files import DataFileError, existing_file, load_torch, load_weights
 from hrc_lab.env.assemble_to_order import (
     SCREW,
     AssembleToOrderSpec,
@@ -126,7 +127,7 @@ def shared_detector(ctx: RunContext, data: ActionSet) -> ActionDetector:
 
     path = cached(cache_dir(ctx) / f"detector_{key}.pt", build)
     detector = ActionDetector(cfg, len(data.names), seed=protocol.data_seed)
-    detector.load_state_dict(torch.load(path, weights_only=True))
+    load_weights(path, detector, load_torch(path))
     return detector.eval()
 
 
@@ -369,7 +370,12 @@ def annotate_video(ctx: RunContext) -> dict[str, float]:
 
 
 def read_video(path: Path) -> tuple[list[np.ndarray], int]:
+    """The RGB frames and frame rate (15 when the file gives none) of a video; :class:`DataFileError` when the file
+    is missing, not a video OpenCV opens, or holds no frame."""
+    path = existing_file(path)
     capture = cv2.VideoCapture(str(path))
+    if not capture.isOpened():
+        raise DataFileError(f"{path}: not a video OpenCV can open (another format, an unknown codec or corrupt?)")
     fps = int(round(capture.get(cv2.CAP_PROP_FPS))) or 15
     frames = []
     while True:
@@ -379,5 +385,5 @@ def read_video(path: Path) -> tuple[list[np.ndarray], int]:
         frames.append(frame[..., ::-1].copy())
     capture.release()
     if not frames:
-        raise ValueError(f"protocol.input: OpenCV read no frame from {path}")
+        raise DataFileError(f"{path}: OpenCV read no frame from it (empty, truncated or an unknown codec?)")
     return frames, fps

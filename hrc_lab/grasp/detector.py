@@ -59,6 +59,7 @@ from torchvision.models.resnet import BasicBlock
 from torchvision.ops import MultiScaleRoIAlign, box_iou, nms
 from torchvision.ops.feature_pyramid_network import FeaturePyramidNetwork
 
+from hrc_lab.data.files import DataFileError, load_torch, load_weights
 from hrc_lab.env.clutter import PART_TYPES, ClutterScene
 from hrc_lab.grasp.configs import LEVELS, DetectorConfig
 
@@ -416,15 +417,25 @@ def load_or_train_detector(cfg: DetectorConfig, scenes: Sequence[ClutterScene],
     path = Path(cache_dir) / f"detector_{key}.pt"
     detector = ObjectDetector(cfg)
     if path.exists():
-        saved = torch.load(path, map_location="cpu", weights_only=False)
-        detector.model.load_state_dict(saved["state_dict"])
-        return detector.eval(), {"train_seconds": saved["train_seconds"], "cached": True, "path": str(path)}
+        seconds = _load_cached(path, detector)
+        return detector.eval(), {"train_seconds": seconds, "cached": True, "path": str(path)}
     start = time.perf_counter()
     detector.fit(scenes, trainer_factory())
     seconds = time.perf_counter() - start
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    # tensors and plain values only (asdict of the config: lists, numbers, strings), so it loads weights-only
     torch.save({"state_dict": detector.model.state_dict(), "config": asdict(cfg), "train_seconds": seconds,
                 "n_scenes": len(scenes)}, tmp)
     os.replace(tmp, path)  # atomic: parallel jobs never read a half-written file
     return detector, {"train_seconds": seconds, "cached": False, "path": str(path)}
+
+
+def _load_cached(path: Path, detector: ObjectDetector) -> float:
+    """Load the weights :func:`load_or_train_detector` saved at ``path`` into ``detector``; the original training
+    time. :class:`DataFileError` when the file is unreadable or not such a checkpoint."""
+    saved = load_torch(path)
+    if not isinstance(saved, dict) or not {"state_dict", "train_seconds"} <= saved.keys():
+        raise DataFileError(f"{path}: not a detector checkpoint of hrc_lab (no 'state_dict' and 'train_seconds')")
+    load_weights(path, detector.model, saved["state_dict"])
+    return saved["train_seconds"]

@@ -16,6 +16,7 @@ import numpy as np
 from joblib import Parallel, delayed
 from tqdm import tqdm
 
+from hrc_lab.data.files import read_npz
 from hrc_lab.env.assemble_to_order import AssembleToOrderSpec, action_labels
 from hrc_lab.env.assembly_video import GENERATOR_VERSION, AssemblyVideoSpec, render_action_clip
 from hrc_lab.perception.hand_tracking import HandTracker
@@ -30,6 +31,9 @@ class WindowSizes:
     frame_size: int
     frame_stride: int
     model_complexity: int = 0  # MediaPipe hand landmark model: 0 lite, 1 full
+
+
+ACTION_SET_ARRAYS = ("tracks", "crops", "frames", "labels", "tracked", "clip_seeds", "names")  # what save() writes
 
 
 @dataclass
@@ -61,9 +65,10 @@ class ActionSet:
 
     @classmethod
     def load(cls, path: Path) -> ActionSet:
-        with np.load(path) as data:
-            return cls(data["tracks"], data["crops"], data["frames"], data["labels"], data["tracked"],
-                       data["clip_seeds"], [str(n) for n in data["names"]])
+        """The set :meth:`save` wrote; :class:`DataFileError` when the file is missing, unreadable or lacks an array."""
+        data = read_npz(path, ACTION_SET_ARRAYS)
+        return cls(data["tracks"], data["crops"], data["frames"], data["labels"], data["tracked"], data["clip_seeds"],
+                   [str(n) for n in data["names"]])
 
 
 def clip_seed(data_seed: int, label_index: int, k: int) -> int:
