@@ -2,13 +2,18 @@
 
 One Hydra job = one MLflow run named ``<experiment>-<method>-<scenario>-seed<k>`` (scenario: the env's table
 column, e.g. ``4of5`` or ``3goals``, plus the robot-cell case when it is not CASE 1, e.g.
-``4of5_case2``). The config is validated before
+``4of5_case2``), followed by ``-v<hash>`` when the job changes anything beyond the experiment file's own sweep keys
+(its *variant*: an ablation is never mistaken for the default protocol). The config is validated before
 anything heavy is imported, so a bad key fails within a second. Sweeps use Hydra's launchers
 (``hydra/launcher=joblib`` locally; submitit or Ray on a cluster).
+
+Exit codes: 0 success, 1 the job failed (MLflow status FAILED), 2 config error (no run is created),
+143 / 130 killed by SIGTERM / SIGINT (MLflow status KILLED, tag ``signal``).
 """
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import sys
 from pathlib import Path
@@ -18,7 +23,8 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig
 
-from hrc_lab.config import ConfigError, validate_config
+from hrc_lab.config import ConfigError, ValidatedConfig, validate_config
+from hrc_lab.interrupts import RunInterrupted, signals_raise
 
 CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
 log = logging.getLogger("hrc_lab")
@@ -34,8 +40,28 @@ def method_of(cfg: DictConfig) -> str:
     return "none"
 
 
-def run_name(cfg: DictConfig, scenario: str) -> str:
-    return f"{cfg.name}-{method_of(cfg)}-{scenario}-seed{cfg.seed}"
+# Overrides that do not change what a job computes: where it logs and writes, its threads, how it resumes.
+NEUTRAL_KEYS = ("experiment", "resume_from", "logger", "paths", "num_threads")
+
+
+def variant_of(overrides: list[str], sweep_keys: list[str]) -> tuple[str, list[str]]:
+    """``("default", [])`` when the task ``overrides`` only set the experiment file's sweep keys (and neutral
+    ones); otherwise ``("v<8 hex>", the extra overrides)``, the hash naming that set of changes."""
+    extra = []
+    for override in overrides:
+        key = override.lstrip("+~").split("=", 1)[0]
+        if key in sweep_keys or key.split(".")[0] in NEUTRAL_KEYS:
+            continue
+        extra.append(override)
+    if not extra:
+        return "default", []
+    extra = sorted(extra)
+    return "v" + hashlib.sha1(" ".join(extra).encode()).hexdigest()[:8], extra
+
+
+def run_name(cfg: DictConfig, scenario: str, variant: str = "default") -> str:
+    name = f"{cfg.name}-{method_of(cfg)}-{scenario}-seed{cfg.seed}"
+    return name if variant == "default" else f"{name}-{variant}"
 
 
 def sweep_id() -> str:
@@ -46,9 +72,63 @@ def sweep_id() -> str:
     return Path(hydra_cfg.sweep.dir).name
 
 
+def job_tags() -> dict[str, str]:
+    """The sweep, the task overrides and the variant of the running Hydra job."""
+    hydra_cfg = HydraConfig.get()
+    overrides = list(hydra_cfg.overrides.task)
+    sweep_keys = list((hydra_cfg.sweeper.get("params") or {}).keys())
+    variant, extra = variant_of(overrides, sweep_keys)
+    return {
+        "sweep": sweep_id(),
+        "overrides": " ".join(overrides)[:5000],
+        "variant": variant,
+        "variant_overrides": " ".join(extra)[:5000],
+    }
+
+
+def check_resumable(validated: ValidatedConfig, cfg: DictConfig) -> None:
+    """``resume_from`` must name a run of this experiment that was killed or failed, with the same config."""
+    from mlflow.exceptions import MlflowException
+    from mlflow.tracking import MlflowClient
+    from omegaconf import OmegaConf
+
+    from hrc_lab.tracking import flatten, resolve_tracking_uri
+
+    client = MlflowClient(resolve_tracking_uri(validated.logger.tracking_uri))
+    try:
+        parent = client.get_run(validated.resume_from)
+    except MlflowException:
+        raise ConfigError(
+            f"resume_from: no MLflow run {validated.resume_from} in {validated.logger.tracking_uri}"
+        ) from None
+    if parent.data.tags.get("experiment") != cfg.name:
+        raise ConfigError(f"resume_from: run {validated.resume_from} belongs to experiment "
+                          f"{parent.data.tags.get('experiment')!r}, not {cfg.name!r}")
+    if parent.info.status in ("FINISHED", "RUNNING"):
+        hint = ""
+        if parent.info.status == "RUNNING":
+            hint = " (if its process is gone, `hrc-lab-runs stale` marks it KILLED)"
+        raise ConfigError(f"resume_from: run {validated.resume_from} is {parent.info.status}; only a KILLED or "
+                          f"FAILED run can be resumed{hint}")
+    ours = {k: v[:6000] for k, v in flatten(OmegaConf.to_container(cfg, resolve=True)).items()}
+    theirs = parent.data.params
+    differ = sorted(k for k in set(ours) | set(theirs) if k != "resume_from" and ours.get(k) != theirs.get(k))
+    if differ:
+        shown = ", ".join(f"{k}={theirs.get(k)!r} there, {ours.get(k)!r} here" for k in differ[:5])
+        raise ConfigError(f"resume_from: run {validated.resume_from} had another config: {shown}")
+
+
 def run(cfg: DictConfig) -> dict[str, float]:
-    """Validate, then run the experiment's protocol inside one MLflow run; return its metrics."""
+    """Validate, then run the experiment's protocol inside one MLflow run; return its metrics. SIGTERM/SIGINT
+    raise :class:`RunInterrupted` inside the job, which marks the run KILLED."""
+    with signals_raise():
+        return _run(cfg)
+
+
+def _run(cfg: DictConfig) -> dict[str, float]:
     validated = validate_config(cfg)
+    if validated.resume_from:
+        check_resumable(validated, cfg)
 
     import lightning.pytorch as pl
     import torch
@@ -69,16 +149,16 @@ def run(cfg: DictConfig) -> dict[str, float]:
         "cell": validated.env.cell,
         "scenario": scenario,
         "seed": str(cfg.seed),
-        "sweep": sweep_id(),
+        **job_tags(),
     }
     output_dir = Path(HydraConfig.get().runtime.output_dir)
-    name = run_name(cfg, scenario)
-    with RunTracker(validated.logger, cfg.name, name, tags) as tracker:
+    name = run_name(cfg, scenario, tags["variant"])
+    with RunTracker(validated.logger, cfg.name, name, tags, parent_run_id=validated.resume_from) as tracker:
         tracker.log_config(cfg)
-        metrics = protocol(RunContext(validated, tracker, cfg.seed))
-        tracker.log_metrics(metrics)
         tracker.log_artifact(output_dir / ".hydra", "hydra")
         tracker.log_text(str(output_dir.resolve()), "hydra/output_dir.txt")
+        metrics = protocol(RunContext(validated, tracker, cfg.seed, output_dir))
+        tracker.log_metrics(metrics)
     shown = ", ".join(f"{k}={v:.3f}" for k, v in metrics.items() if "latency" not in k and not k.startswith("n_"))
     log.info("%s: %s (MLflow run %s)", name, shown, tracker.run_id)
     return metrics
@@ -91,6 +171,9 @@ def _hydra_main(cfg: DictConfig) -> float | None:
     except ConfigError as err:
         print(f"hrc-lab: config error: {err}", file=sys.stderr)
         sys.exit(2)
+    except RunInterrupted as err:
+        print(f"hrc-lab: {err}; the MLflow run is marked KILLED (resume with resume_from=<run id>)", file=sys.stderr)
+        sys.exit(err.exit_code)
     return metrics.get("sr")  # the value an Optuna sweeper would optimise
 
 

@@ -7,9 +7,11 @@ every group, naming the full key in the error (``env.n_selected``, ``reasoning.h
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Any
 
+from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
@@ -30,6 +32,7 @@ TOP_LEVEL_KEYS = {
     "trainer",
     "logger",
     "paths",
+    "resume_from",
 }
 
 
@@ -52,27 +55,43 @@ LOGGERS.register("mlflow", LoggerConfig, "hrc_lab.tracking:RunTracker")
 
 @dataclass
 class TrainerConfig:
-    """The Lightning ``Trainer`` arguments a run may set (``conf/trainer``); add one here to expose it."""
+    """The Lightning ``Trainer`` arguments a run may set, with their defaults (written here only: the files in
+    ``conf/trainer`` name what differs). One epoch is ``steps_per_epoch`` batches of the module being trained, so
+    ``max_epochs`` fixes the training length; add an argument here to expose it."""
 
-    _target_: str = "lightning.pytorch.Trainer"
     accelerator: str = "cpu"
     devices: Any = 1
     strategy: str = "auto"
     num_nodes: int = 1
     precision: Any = "32-true"
-    max_epochs: int = 30
+    max_epochs: int = 20
     max_steps: int = -1
     deterministic: bool = True
     log_every_n_steps: int = 50
-    enable_progress_bar: bool = True
+    enable_progress_bar: bool = False  # sweeps run hundreds of short fits; each job's tqdm bar shows progress
     enable_model_summary: bool = False
-    enable_checkpointing: bool = False
+    enable_checkpointing: bool = True
     gradient_clip_val: float | None = None
     default_root_dir: str | None = None
+    # hrc_lab's own key (not passed to the Trainer): save a resumable checkpoint every n epochs
+    checkpoint_every_n_epochs: int = 1
 
     def __post_init__(self) -> None:
-        if self.max_epochs < 1 and self.max_steps < 1:
-            raise ValueError("trainer.max_epochs or trainer.max_steps must be >= 1")
+        # Lightning reads max_epochs=-1 as "train forever": rejected, every run here has a finite length.
+        if self.max_epochs < 1:
+            raise ValueError(f"trainer.max_epochs must be >= 1, got {self.max_epochs}")
+        if self.max_steps != -1 and self.max_steps < 1:
+            raise ValueError(f"trainer.max_steps must be >= 1 (or -1: bounded by max_epochs), got {self.max_steps}")
+        if self.log_every_n_steps < 1:
+            raise ValueError(f"trainer.log_every_n_steps must be >= 1, got {self.log_every_n_steps}")
+        if self.checkpoint_every_n_epochs < 1:
+            raise ValueError(f"trainer.checkpoint_every_n_epochs must be >= 1, got {self.checkpoint_every_n_epochs}")
+        if self.gradient_clip_val is not None and self.gradient_clip_val <= 0:
+            raise ValueError(f"trainer.gradient_clip_val must be > 0 or null, got {self.gradient_clip_val}")
+
+
+# conf/trainer/*.yaml extend this schema (defaults: [schema]), so Hydra knows every key a user may override.
+ConfigStore.instance().store(group="trainer", name="schema", node=TrainerConfig)
 
 
 @dataclass
@@ -87,11 +106,15 @@ class ValidatedConfig:
     grasp: Any
     protocol: Any
     logger: LoggerConfig
+    trainer: TrainerConfig
+    resume_from: str | None = None
 
 
-def _validate_trainer(node: DictConfig) -> None:
+def _validate_trainer(node: DictConfig) -> TrainerConfig:
+    """The user's merged trainer values as a :class:`TrainerConfig` (so its checks run on them, not on defaults)."""
     try:
-        OmegaConf.merge(OmegaConf.structured(TrainerConfig), node)
+        values = OmegaConf.to_container(node, resolve=True)
+        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(TrainerConfig), values))
     except OmegaConfBaseException as err:
         raise ConfigError(f"trainer.{getattr(err, 'full_key', '?')}: {str(err).splitlines()[0]}") from None
     except ValueError as err:
@@ -115,12 +138,15 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
     for key, minimum in (("seed", 0), ("num_threads", 1)):
         if not isinstance(cfg.get(key), int) or cfg.get(key) < minimum:
             raise ConfigError(f"{key}: must be an integer >= {minimum}, got {cfg.get(key)!r}")
-    _validate_trainer(cfg.trainer)
+    trainer = _validate_trainer(cfg.trainer)
+    resume_from = cfg.get("resume_from")
+    if resume_from is not None and not (isinstance(resume_from, str) and re.fullmatch(r"[0-9a-f]{32}", resume_from)):
+        raise ConfigError(f"resume_from: must be the 32-character id of an MLflow run, got {resume_from!r}")
     reasoning = cfg.get("reasoning")
     motion = cfg.get("motion")
     perception = cfg.get("perception")
     grasp = cfg.get("grasp")
-    return ValidatedConfig(
+    validated = ValidatedConfig(
         raw=cfg,
         env=ENVS.validate(cfg.env),
         reasoning=None if reasoning is None or reasoning.get("name") == "none" else REASONERS.validate(reasoning),
@@ -129,4 +155,22 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
         grasp=None if grasp is None or grasp.get("name") == "none" else GRASPS.validate(grasp),
         protocol=PROTOCOLS.validate(cfg.protocol, "protocol"),
         logger=LOGGERS.validate(cfg.logger),
+        trainer=trainer,
+        resume_from=resume_from,
     )
+    _check_across_groups(validated)
+    return validated
+
+
+def _check_across_groups(validated: ValidatedConfig) -> None:
+    """Checks that relate two groups: a protocol schema may define ``check(validated)``, raising ``ValueError``
+    (or :class:`ConfigError`) that names the keys, e.g. ``protocol.object_counts`` against ``env.max_counts``."""
+    check = getattr(validated.protocol, "check", None)
+    if check is None:
+        return
+    try:
+        check(validated)
+    except ConfigError:
+        raise
+    except ValueError as err:
+        raise ConfigError(str(err)) from None

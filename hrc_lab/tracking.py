@@ -5,7 +5,9 @@ never share state; the tracking URI is one config key (``logger.tracking_uri``),
 
 from __future__ import annotations
 
+import os
 import re
+import socket
 import tempfile
 import time
 from pathlib import Path
@@ -17,6 +19,7 @@ from mlflow.tracking import MlflowClient
 from omegaconf import DictConfig, OmegaConf
 
 from hrc_lab.config import LoggerConfig
+from hrc_lab.interrupts import RunInterrupted
 
 
 def resolve_tracking_uri(uri: str) -> str:
@@ -60,16 +63,40 @@ def flatten(node, prefix: str = "") -> dict[str, str]:
     return out
 
 
-class RunTracker:
-    """One MLflow run; use as a context manager so a crash marks the run FAILED."""
+def process_identity(pid: int | None = None) -> dict[str, str]:
+    """Tags that identify the process running a job: host, PID and the process' start (boot id and start time in
+    clock ticks), so a later look can tell a live job from a dead one whose PID was reused."""
+    pid = os.getpid() if pid is None else pid
+    return {"host": socket.gethostname(), "pid": str(pid), "process_start": process_start(pid) or "unknown"}
 
-    def __init__(self, logger: LoggerConfig, experiment: str, run_name: str, tags: dict[str, str]) -> None:
+
+def process_start(pid: int) -> str | None:
+    """``<boot id>:<start ticks>`` of a live process on this machine, or None when no such process exists."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+        boot = Path("/proc/sys/kernel/random/boot_id").read_text().strip()
+    except OSError:
+        return None
+    return f"{boot}:{stat.rsplit(')', 1)[1].split()[19]}"
+
+
+class RunTracker:
+    """One MLflow run; use as a context manager: leaving it normally marks the run FINISHED, an exception FAILED,
+    SIGTERM/SIGINT (:class:`RunInterrupted`) KILLED with the signal in the ``signal`` tag. ``parent_run_id`` names
+    the killed run this one resumes (tag ``resumed_from``); its checkpoints are read by :meth:`resume_checkpoint`."""
+
+    def __init__(self, logger: LoggerConfig, experiment: str, run_name: str, tags: dict[str, str],
+                 parent_run_id: str | None = None) -> None:
         self.tracking_uri = resolve_tracking_uri(logger.tracking_uri)
         self.client = MlflowClient(self.tracking_uri)
         self.experiment_id = ensure_experiment(self.client, experiment, logger.artifact_root)
         self.run_name = run_name
-        self.tags = tags
+        self.tags = {**tags, **process_identity()}
+        if parent_run_id:
+            self.tags["resumed_from"] = parent_run_id
+        self.parent_run_id = parent_run_id
         self.run_id: str | None = None
+        self._downloads: tempfile.TemporaryDirectory | None = None
 
     def __enter__(self) -> RunTracker:
         run = self.client.create_run(self.experiment_id, run_name=self.run_name, tags=self.tags)
@@ -77,7 +104,25 @@ class RunTracker:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        self.client.set_terminated(self.run_id, "FAILED" if exc_type else "FINISHED")
+        if isinstance(exc, RunInterrupted):
+            self.client.set_tag(self.run_id, "signal", exc.signal_name)
+            status = "KILLED"
+        else:
+            status = "FAILED" if exc_type else "FINISHED"
+        self.client.set_terminated(self.run_id, status)
+        if self._downloads is not None:
+            self._downloads.cleanup()
+
+    def resume_checkpoint(self, artifact: str) -> Path | None:
+        """The parent run's checkpoint ``artifact`` (e.g. ``checkpoints/ndp/last.ckpt``) downloaded to a local
+        file, or None when that run saved no such checkpoint (the fit then starts from scratch)."""
+        folder, _, name = artifact.rpartition("/")
+        if self.parent_run_id is None or name not in {Path(f.path).name for f in
+                                                       self.client.list_artifacts(self.parent_run_id, folder)}:
+            return None
+        if self._downloads is None:
+            self._downloads = tempfile.TemporaryDirectory(prefix="hrc_lab_resume_")
+        return Path(self.client.download_artifacts(self.parent_run_id, artifact, self._downloads.name))
 
     # logging -------------------------------------------------------------------------------------------------
     def log_config(self, cfg: DictConfig) -> None:

@@ -2,31 +2,50 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
 
-import lightning.pytorch as pl
 import numpy as np
-from hydra.utils import instantiate
 
 from hrc_lab.config import ValidatedConfig
 from hrc_lab.tracking import RunTracker
+from hrc_lab.training import RandomState, RunCheckpoint, Trainer
 
 
 @dataclass
 class RunContext:
-    """The validated config, the job's MLflow run and its seed."""
+    """The validated config, the job's MLflow run, its seed and its output folder."""
 
     cfg: ValidatedConfig
     tracker: RunTracker
     seed: int
+    output_dir: Path
+    _fits: Counter = field(default_factory=Counter)
 
     def rng(self, *stream: int) -> np.random.Generator:
         """An independent, reproducible random stream per purpose (data, folds, test scenarios...)."""
         return np.random.default_rng([self.seed, *stream])
 
-    def trainer(self, prefix: str = "", **overrides) -> pl.Trainer:
+    def trainer(self, prefix: str = "", **overrides) -> Trainer:
         """A Lightning Trainer from ``conf/trainer`` (``overrides`` replace its keys, e.g. ``max_epochs``) logging
-        per-epoch metrics into this run under ``prefix``."""
-        return instantiate(
-            self.cfg.raw.trainer, logger=self.tracker.lightning_logger(prefix), _convert_="all", **overrides
-        )
+        per-epoch metrics into this run under ``prefix`` and checkpointing into its artifacts
+        (``checkpoints/<prefix>``; a prefix used twice in a job gets ``-2``, ``-3``... in the order of the fits).
+        With ``resume_from`` set, the fit continues from that run's checkpoint of the same name."""
+        name = prefix.strip("/") or "model"
+        self._fits[name] += 1
+        if self._fits[name] > 1:
+            name = f"{name}-{self._fits[name]}"
+        folder = f"checkpoints/{name}"
+        settings = dataclasses.asdict(self.cfg.trainer)
+        every_n_epochs = settings.pop("checkpoint_every_n_epochs")
+        callbacks = [RandomState()]
+        if settings["enable_checkpointing"]:
+            upload = lambda path: self.tracker.log_artifact(path, folder)  # noqa: E731
+            callbacks.append(RunCheckpoint(self.output_dir / folder, every_n_epochs, upload))
+        resume = self.tracker.resume_checkpoint(f"{folder}/last.ckpt") if self.cfg.resume_from else None
+        if resume is not None:
+            self.tracker.log_artifact(resume, folder)  # the new run holds every checkpoint it continues from
+        return Trainer(**{**settings, **overrides}, logger=self.tracker.lightning_logger(prefix),
+                       callbacks=callbacks, resume_checkpoint=resume)
