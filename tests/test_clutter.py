@@ -134,3 +134,19 @@ def test_a_generated_scene_is_deterministic_and_consistent(tmp_path):
     (loaded,) = load_scenes(save_scenes(tmp_path / "scenes.npz", [first], spec), spec)
     assert np.array_equal(loaded.image, first.image) and np.array_equal(loaded.resting, first.resting)
     assert loaded.types == first.types and np.allclose(loaded.boxes, boxes)
+
+
+def test_every_scene_size_the_env_allows_is_drawn():
+    """Table 6.2 fixes the number of parts (min_objects = max_objects = count, any count up to the sum of
+    env.max_counts): the counts per type add up to it within max_counts, and the scene has that many parts."""
+    from dataclasses import replace
+
+    from hrc_lab.env.clutter_scene import _counts, generate_scene
+
+    spec = ClutterSpec(image_size=64, max_counts={"a": 4, "b": 2, "c": 1})
+    rng = np.random.default_rng(0)
+    for total in range(1, 8):
+        counts = _counts(replace(spec, min_objects=total, max_objects=total), rng)
+        assert sum(counts.values()) == total and all(counts[t] <= spec.max_counts[t] for t in "abc")
+    scene = generate_scene(replace(spec, min_objects=7, max_objects=7), 7)
+    assert sorted(scene.types) == ["a"] * 4 + ["b"] * 2 + ["c"]

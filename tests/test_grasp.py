@@ -9,6 +9,7 @@ import torch
 from omegaconf import OmegaConf
 from torch_geometric.loader import DataLoader
 
+from hrc_lab.config import validate_config
 from hrc_lab.env.clutter import ClutterObject, ClutterScene
 from hrc_lab.env.clutter_rule import solution_types
 from hrc_lab.grasp import GRASPS
@@ -106,15 +107,32 @@ def test_one_algorithm_4_iteration():
         calls.append(mask.tolist())
         return [NodeReading(0.1, ["move", "c"]), NodeReading(0.9, ["grasp"]), NodeReading(0.8, ["grasp"])]
 
-    answer = iterate(read, boxes, labels, "a")
+    answer = iterate(read, boxes, labels, "a", max_iterations=6)
     assert calls == [[True, False, False], [False, True, False]]
     assert answer.requests == [[0], [1]] and answer.solutions == [["move", "c"]]
     assert answer.grasp == 1 and not answer.help
 
 
 def test_help_ends_the_iteration():
-    answer = iterate(lambda mask: [NodeReading(0.2, ["help"])] * 2, np.zeros((2, 4)), ["a", "a"], "a")
+    answer = iterate(lambda mask: [NodeReading(0.2, ["help"])] * 2, np.zeros((2, 4)), ["a", "a"], "a", 6)
     assert answer.help and answer.grasp is None
+
+
+def test_algorithm_4_stops_at_grasp_max_iterations():
+    """Every reading says "move c" and nothing is graspable: an a, then a row of c's, each one's nearest other c
+    the next one in the row (the gaps shrink), so each iteration requests a new c until the bound."""
+    x = 100 * np.cumsum([0, 1, 0.5, 0.25, 0.125, 0.0625, 0.03125])
+    boxes = np.stack([x, np.zeros_like(x), x + 1, np.ones_like(x)], axis=1).astype(np.float32)
+    labels = ["a"] + ["c"] * (len(x) - 1)
+
+    def read(mask):
+        return [NodeReading(0.1, ["move", "c"])] * len(labels)
+
+    unbounded = iterate(read, boxes, labels, "a", max_iterations=100)
+    assert unbounded.requests == [[i] for i in range(len(labels))]  # the row runs out: the bound is what stops below
+    answer = iterate(read, boxes, labels, "a", max_iterations=3)
+    assert answer.requests == [[0], [1], [2]] and answer.solutions == [["move", "c"]] * 3
+    assert answer.grasp is None and not answer.help
 
 
 def test_config_errors_name_the_key():
@@ -122,6 +140,26 @@ def test_config_errors_name_the_key():
         GRASPS.validate(OmegaConf.create({"name": "gnn_att", "edges": "euclid"}))
     with pytest.raises(ConfigError, match="grasp.name"):
         GRASPS.validate(OmegaConf.create({"name": "gnn_attention"}))
+    with pytest.raises(ConfigError, match=r"grasp.max_iterations must be >= 1, got 0"):
+        GRASPS.validate(OmegaConf.create({"name": "gnn_att", "max_iterations": 0}))
+
+
+def test_grasp_max_iterations_reaches_the_config(compose_config):
+    assert validate_config(compose_config("experiment=ch6/table_6_2_single")).grasp.max_iterations == 6
+    validated = validate_config(compose_config("experiment=ch6/table_6_2_single", "+grasp.max_iterations=3"))
+    assert validated.grasp.max_iterations == 3
+
+
+def test_object_counts_are_checked_against_the_env(compose_config):
+    """Table 6.2's scene sizes are bounded by the parts env.max_counts allows (6 by default), not by a constant."""
+    cfg = compose_config("experiment=ch6/table_6_2_single", "protocol.object_counts=[3,7]")
+    with pytest.raises(ConfigError, match=r"protocol.object_counts must be values in 1..6 \(the sum of env.max_counts="
+                                          r".*\), got \[3, 7\]"):
+        validate_config(cfg)
+    cfg = compose_config("experiment=ch6/table_6_2_single", "protocol.object_counts=[3,7]", "env.max_counts.a=4")
+    assert validate_config(cfg).protocol.object_counts == [3, 7]
+    with pytest.raises(ConfigError, match="protocol.object_counts must be non-empty values >= 1"):
+        validate_config(compose_config("experiment=ch6/table_6_2_single", "protocol.object_counts=[0]"))
 
 
 def _nodes(types, boxes, blockers):

@@ -152,7 +152,7 @@ def table_6_2_single(ctx: RunContext) -> dict[str, float]:
             def read(mask, n=n):
                 return solver.read([solver.graph(n, mask)])[0]
 
-            answer = iterate(read, n.boxes, n.labels, goal_type)
+            answer = iterate(read, n.boxes, n.labels, goal_type, ctx.cfg.grasp.max_iterations)
             ok = iterative_correct(fixed, n, goal_type, answer)
             outcomes.append(ok)
             rows.append(

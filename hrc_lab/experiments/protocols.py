@@ -358,10 +358,22 @@ class Table62SingleProtocol(Table61Protocol):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if not self.object_counts or any(not 1 <= n <= 6 for n in self.object_counts):
-            raise ValueError(f"protocol.object_counts must be values in 1..6, got {self.object_counts}")
+        if not self.object_counts or min(self.object_counts) < 1:
+            raise ValueError(f"protocol.object_counts must be non-empty values >= 1, got {self.object_counts}")
         if self.cases < 1:
             raise ValueError(f"protocol.cases must be >= 1, got {self.cases}")
+
+    def check(self, validated) -> None:
+        """Against the env (called by :func:`hrc_lab.config.validate_config`): a scene holds at most the parts that
+        ``env.max_counts`` allows."""
+        max_counts = getattr(validated.env, "max_counts", None)
+        if max_counts is None:
+            raise ValueError(f"protocol.object_counts needs the clutter env (env.max_counts), got env "
+                             f"'{validated.raw.env.name}'")
+        most = sum(max_counts.values())
+        if max(self.object_counts) > most:
+            raise ValueError(f"protocol.object_counts must be values in 1..{most} (the sum of "
+                             f"env.max_counts={dict(max_counts)}), got {self.object_counts}")
 
 
 CH6 = "hrc_lab.experiments.ch6_grasp"

@@ -45,10 +45,11 @@ def iterate(
     boxes: np.ndarray,
     labels: list[str],
     goal_type: str,
-    max_iterations: int = 6,
+    max_iterations: int,
 ) -> IterativeAnswer:
     """Algorithm 4. ``read(requested_mask)`` builds the scene graph with that request and returns the solver's
-    reading of every node."""
+    reading of every node; at most ``max_iterations`` requests (``grasp.max_iterations``), after which the answer
+    has neither a grasp nor help."""
     answer = IterativeAnswer()
     request = [i for i, label in enumerate(labels) if label == goal_type]
     seen: set[int] = set()
