@@ -28,19 +28,26 @@ class SweepSummary(Callback):
         ensure_experiment(client, config.name, validated.logger.artifact_root)
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
-        from hrc_lab.report.build import build_section, write_section
+        from hrc_lab.report.build import build_sections, write_section
         from hrc_lab.tracking import LoggerConfig, RunTracker
 
         sweep_dir = Path(config.hydra.sweep.dir)
         uri = config.logger.tracking_uri
-        section = build_section(uri, config.name, config.table, sweep=sweep_dir.name)
-        if section is None:
+        # This sweep's runs only, of whatever variant they carry (a sweep with extra overrides is an ablation; one
+        # that sweeps an extra key holds several variants, each summarised apart).
+        sections = build_sections(uri, config.name, config.table, sweep=sweep_dir.name, variant=None)
+        if not sections:
             print(f"hrc-lab: no finished runs in sweep {sweep_dir}", file=sys.stderr)
             return
-        markdown = write_section(section, sweep_dir / "summary", uri, config.table)
+        parts = []
+        for variant, section in sections:
+            stem = config.table if variant == "default" else f"{config.table}_{variant}"
+            parts.append(write_section(section, sweep_dir / "summary", uri, stem))
+        markdown = "\n".join(parts)
         (sweep_dir / "summary.md").write_text(markdown)
         logger = LoggerConfig(tracking_uri=uri, artifact_root=config.logger.artifact_root)
-        tags = {"kind": "summary", "table": str(config.table), "sweep": sweep_dir.name, "chapter": str(config.chapter)}
+        tags = {"kind": "summary", "table": str(config.table), "sweep": sweep_dir.name, "chapter": str(config.chapter),
+                "variant": ",".join(variant for variant, _ in sections)}
         with RunTracker(logger, config.name, f"{config.name}-summary-{sweep_dir.name}", tags) as tracker:
             tracker.log_artifact(sweep_dir / "summary", "summary")
             tracker.log_artifact(sweep_dir / "summary.md", "summary")

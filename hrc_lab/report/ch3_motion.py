@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.report.runs import mean_std, spread  # noqa: E402
+from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting, spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
 
@@ -61,8 +61,11 @@ def table_3_1(runs: pd.DataFrame) -> Section:
     failures = runs.groupby(["method", "scenario"])[fail_columns].mean().round(2)
     text = [
         "Per-object success rate of the two-level planner (task classifier c(x), task-conditioned VI sub-goal "
-        "planner with 5 sub-goals per stage, neural dynamic planner with ≤ 30 steps per sub-goal) correcting the "
-        "human's misplacements in the robosuite cell: an object succeeds when it ends within δr of its goal and no "
+        f"planner with {amount(runs, 'protocol.subgoals_per_stage', 're-sampled sub-goals per stage')}, neural "
+        f"dynamic planner with at most {amount(runs, 'protocol.max_steps_per_subgoal', 'steps')} per sub-goal), "
+        f"trained on {amount(runs, 'protocol.demos', 'scripted-expert demonstrations')} per case and seed, "
+        f"correcting the human's misplacements in {amount(runs, 'protocol.trials', 'trials')} per case and seed in "
+        "the robosuite cell: an object succeeds when it ends within δr of its goal and no "
         "forbidden contact happened. Steps: control steps the robot spent on the object (thesis: at δr 0.08 / 0.06). "
         f"Mean ± std over seeds {sorted(runs.seed.unique())}; thesis values in brackets. Planners: "
         + "; ".join(f"`{m}` {METHODS.get(m, m)}" for m in methods)
@@ -111,6 +114,9 @@ def curve_columns(runs: pd.DataFrame, controller: str) -> list[tuple[int, str]]:
 @register_section("fig_3_10")
 def fig_3_10(runs: pd.DataFrame) -> Section:
     ref = thesis_results()["ch3"]["text"]
+    steps_logged, converged = setting(runs, "protocol.steps"), setting(runs, "protocol.converged_m")
+    final_column = f"|Δ| after {steps_logged} steps (m)" if steps_logged != NOT_LOGGED else "|Δ| at the last step (m)"
+    reached_column = "reached `protocol.converged_m`" if converged == NOT_LOGGED else f"reached < {converged} m"
     rows, csv = [], []
     fig, ax = plt.subplots(figsize=(6, 3.6))
     for controller, label in CONTROLLERS.items():
@@ -126,8 +132,8 @@ def fig_3_10(runs: pd.DataFrame) -> Section:
         converge = mean_std(runs.assign(all="all"), ["all"], f"steps_to_converge_{controller}")
         final = mean_std(runs.assign(all="all"), ["all"], f"final_m_{controller}")
         get = lambda s: (s.iloc[0]["mean"], s.iloc[0]["std"]) if len(s) else (np.nan, np.nan)  # noqa: E731
-        rows.append({"controller": label, "|Δ| after 30 steps (m)": fmt(*get(final), digits=3),
-                     f"reached < {ref['ndp_converges_below_m']} m": fmt(*get(reached)),
+        rows.append({"controller": label, final_column: fmt(*get(final), digits=3),
+                     reached_column: fmt(*get(reached)),
                      "steps to get there": fmt(*get(converge), digits=1)})
         csv += [{"controller": controller, "step": int(s), "mean_m": m, "std_m": d}
                 for s, m, d in zip(steps, mean, std)]
@@ -138,8 +144,11 @@ def fig_3_10(runs: pd.DataFrame) -> Section:
     ax.legend(fontsize=8)
     fig.tight_layout()
     text = [
-        "Distance from the cup's lip to a random sub-goal over 30 control steps from the initial pose (20 trials per "
-        "seed), for controllers trained on the same error-correction demonstrations; curves: mean over trials, band: "
+        "Distance from the cup's lip to a random sub-goal over "
+        f"{amount(runs, 'protocol.steps', 'control steps')} from the initial pose "
+        f"({amount(runs, 'protocol.trials', 'trials')} per seed), for controllers trained on the same error-correction "
+        f"demonstrations ({amount(runs, 'protocol.demos_per_case', 'per case')}); 'reached' counts trials that got "
+        f"below {keyed(runs, 'protocol.converged_m', 'm')}; curves: mean over trials, band: "
         f"spread over seeds {sorted(runs.seed.unique())}. Thesis (Fig. 3.10): the NDP gets below "
         f"{ref['ndp_converges_below_m']} m in about {ref['ndp_steps_to_converge']} steps; the full-observation actor "
         "does not converge.",

@@ -9,7 +9,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.report.runs import mean_std  # noqa: E402
+from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
 
@@ -50,10 +50,15 @@ def table_4_2(runs: pd.DataFrame) -> Section:
     if len(ours):
         latency = ours.planning_ms.mean()
         ref_ms = thesis_results()["ch4"]["text"]["subgoal_planning_ms_per_subgoal"]
+    folds = setting(runs, "protocol.cv_folds")
+    folds = f"{folds}-fold (`protocol.cv_folds`)" if folds != NOT_LOGGED else "k-fold (`protocol.cv_folds` not logged)"
     text = [
-        "R² of the sub-goal regressor by 3-fold cross-validation over demonstrations, and success rate (SR) of "
-        "100 closed-loop trials (CASE 1 and CASE 2 alternating, every goal configuration; trained on one packing "
-        "arrangement per selection) of the two-level motion module with ground-truth reasoning outputs, δr = 0.06 m; "
+        f"R² of the sub-goal regressor by {folds} cross-validation over demonstrations, and success rate (SR) of "
+        f"{amount(runs, 'protocol.trials', 'closed-loop trials')} (CASE 1 and CASE 2 alternating, every goal "
+        "configuration; trained on one packing arrangement per selection, "
+        f"{amount(runs, 'protocol.demos', 'scripted-expert demonstrations')} per cell and seed) of the two-level "
+        "motion module with ground-truth reasoning outputs, δr = "
+        f"{keyed(runs, 'env.sim.success_threshold', 'm')}; "
         f"mean ± std over seeds {sorted(runs.seed.unique())}. Thesis values in brackets.",
         "",
         pd.DataFrame(rows).to_markdown(index=False),

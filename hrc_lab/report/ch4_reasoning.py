@@ -9,7 +9,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.report.runs import mean_std  # noqa: E402
+from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
 
@@ -52,7 +52,8 @@ def table_4_1(runs: pd.DataFrame) -> Section:
     seeds = sorted(runs.seed.unique())
     text = [
         "Success rate (all 2n predictions of a trial right), CASE 1, full demo set, random positions; "
-        f"mean ± std over seeds {seeds} (fold k of a 5-fold split for seed k). Thesis values in brackets.",
+        f"mean ± std over seeds {seeds} (seed k tests on fold k mod n of an n-fold split, n = "
+        f"{keyed(runs, 'protocol.n_folds')}). Thesis values in brackets.",
         "",
         pd.DataFrame(rows).to_markdown(index=False),
     ]
@@ -119,8 +120,9 @@ def fig_4_7(runs: pd.DataFrame) -> Section:
     frame = pd.DataFrame(records)
     text = [
         "Success rate over the training ratio λ. CASE 1: unseen goal configurations (selections never trained on; "
-        "at λ = 1 every configuration is seen, with new positions). CASE 2: 300 human-intervention scenarios of "
-        f"random configurations. Mean ± std over seeds {sorted(runs.seed.unique())}.",
+        "at λ = 1 every configuration is seen, with new positions). CASE 2: "
+        f"{amount(runs, 'protocol.case2_tests', 'human-intervention scenarios')} of random configurations. "
+        f"Mean ± std over seeds {sorted(runs.seed.unique())}.",
         "",
         "Thesis statements: CASE 1, ours reaches 1.0 on unseen configurations at λ = 0.6 in 3of5 "
         f"({thesis['case1_ours_unseen_sr_at_lambda_0.6_3of5']}); CASE 2, ours at λ = 1: "
@@ -190,13 +192,19 @@ def _lambda_plot(frame: pd.DataFrame, cells, methods, thesis):
 def practical(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch4"]["practical"]
     generalise = thesis["train_2of5_generalise"]
+    max_missing = setting(runs, "protocol.max_missing")
+    missing = f"1-{max_missing}" if max_missing != NOT_LOGGED else "1 to `protocol.max_missing` (not logged)"
+    partial = amount(runs, "protocol.partial_demos", "partial demos")
+    sizes = setting(runs, "protocol.train_selected"), setting(runs, "env.n_objects")
+    trained = f"{sizes[0]}of{sizes[1]}" if NOT_LOGGED not in sizes else "? (`protocol.train_selected` not logged)"
+    cell = " / ".join(sorted(runs.cell.unique()))  # the cell the missing-product scenarios run in
     scenarios = {
-        "missing_without_partial_sr": ("3of5, 1-2 missing, no partial demos", None),
-        "missing_sr": ("3of5, 1-2 missing, +50 partial demos", thesis["missing_items_3of5_sr"]),
-        "order_size_3of5_case1_sr": ("train 2of5 -> test 3of5, CASE 1", generalise["3of5"]["case1"]),
-        "order_size_3of5_case2_sr": ("train 2of5 -> test 3of5, CASE 2", generalise["3of5"]["case2"]),
-        "order_size_4of5_case1_sr": ("train 2of5 -> test 4of5, CASE 1", generalise["4of5"]["case1"]),
-        "order_size_4of5_case2_sr": ("train 2of5 -> test 4of5, CASE 2", generalise["4of5"]["case2"]),
+        "missing_without_partial_sr": (f"{cell}, {missing} missing, no partial demos", None),
+        "missing_sr": (f"{cell}, {missing} missing, +{partial}", thesis["missing_items_3of5_sr"]),
+        "order_size_3of5_case1_sr": (f"train {trained} -> test 3of5, CASE 1", generalise["3of5"]["case1"]),
+        "order_size_3of5_case2_sr": (f"train {trained} -> test 3of5, CASE 2", generalise["3of5"]["case2"]),
+        "order_size_4of5_case1_sr": (f"train {trained} -> test 4of5, CASE 1", generalise["4of5"]["case1"]),
+        "order_size_4of5_case2_sr": (f"train {trained} -> test 4of5, CASE 2", generalise["4of5"]["case2"]),
     }
     methods = _ordered(runs["method"].unique(), METHODS)
     rows, records = [], []
@@ -209,10 +217,11 @@ def practical(runs: pd.DataFrame) -> Section:
             records.append({"scenario": metric, "method": method, "sr_mean": mean, "sr_std": std, "thesis": ref})
         rows.append(row)
     text = [
-        "Practical scenarios of 4.4.5. Missing products: 180 test scenarios with 1-2 products absent at the start "
-        "and restocked once the rest is packed; MLP and RF need a fixed input size (n/a). Varying order size: one "
-        f"model trained on 2of5 (box of 4 slots), 100 tests per size and case. Mean ± std over seeds "
-        f"{sorted(runs.seed.unique())}.",
+        f"Practical scenarios of 4.4.5. Missing products: {amount(runs, 'protocol.missing_tests', 'test scenarios')} "
+        f"with {missing} products absent at the start and restocked once the rest is packed; MLP and RF need a fixed "
+        f"input size (n/a). Varying order size: one model trained on {trained} (box of "
+        f"{amount(runs, 'protocol.slots', 'slots')}), {amount(runs, 'protocol.test_tests', 'tests')} per size and "
+        f"case. Mean ± std over seeds {sorted(runs.seed.unique())}.",
         "",
         pd.DataFrame(rows).to_markdown(index=False),
     ]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pandas as pd
 from matplotlib.figure import Figure
 
-from hrc_lab.report.runs import spread
+from hrc_lab.report.runs import amount, setting, setting_number, spread
 from hrc_lab.report.sections import Section, register_section
 from hrc_lab.report.thesis import fmt, thesis_results
 
@@ -34,6 +34,9 @@ def fig_5_6(runs: pd.DataFrame) -> Section:
         row["classify ms"] = fmt(*spread(part, "classify_ms"), 1)
         rows.append(row)
     ours = runs[runs.method == "hand_lstm_fcn"]
+    window = amount(runs, "env.video.window", "frames")
+    frames, fps = setting_number(runs, "env.video.window"), setting_number(runs, "env.video.fps")
+    duration = f", over its {frames / fps:g} s" if frames and fps else ""
     latency = ""
     if len(ours):
         latency = (
@@ -41,12 +44,15 @@ def fig_5_6(runs: pd.DataFrame) -> Section:
             f"frame, classification {fmt(*spread(ours, 'classify_ms'), 1)} ms per window, so "
             f"{fmt(*spread(ours, 'latency_window_ms'), 0)} ms from a window's last frame to its action "
             f"(thesis: {text_ref['detection_latency_ms']} ms average detection time, GPU); tracking every frame of a "
-            f"45-frame window costs {fmt(*spread(ours, 'latency_window_total_ms'), 0)} ms in total, over its 3 s."
+            f"window ({window}) costs {fmt(*spread(ours, 'latency_window_total_ms'), 0)} ms in total{duration}."
         )
     n_clips = runs.n_train.iloc[0] + runs.n_test.iloc[0]
+    train = setting_number(runs, "protocol.train_fraction")
+    split = (f"{train:g} / {1 - train:g} train / test split" if train is not None
+             else f"train / test split (`protocol.train_fraction` {setting(runs, 'protocol.train_fraction')})")
     text = [
-        f"Action accuracy on generated clips of the 18 actions of Table 5.1 ({int(n_clips)} clips of 45 frames, "
-        f"MediaPipe found the hand in {runs.tracked_fraction.mean():.1%} of their frames), 0.8 / 0.2 split per "
+        f"Action accuracy on generated clips of the 18 actions of Table 5.1 ({int(n_clips)} clips of {window}, "
+        f"MediaPipe found the hand in {runs.tracked_fraction.mean():.1%} of their frames), {split} per "
         f"action; mean ± std over seeds {sorted(runs.seed.unique())} (each seed: a new split and initialisation). "
         "The thesis gives Fig. 5.6 only as bars (ours best, hand-centric CNN and CNN-LSTM clearly lower) and "
         f"{text_ref['detector_accuracy_whole_video']:.1%} for its detector over the whole video set (Fig. 5.5).",
@@ -103,7 +109,8 @@ def table_5_2(runs: pd.DataFrame) -> Section:
     text = [
         "Generated assembly sessions streamed frame by frame through MediaPipe tracking, the action detector "
         "(`hand_lstm_fcn`, trained once on all generated clips) and the semantic planner's Algorithm 3 loop. AD: "
-        "share of 45-frame windows whose action is the majority true label of their frames; SG: the Semantic Guidance "
+        f"share of windows ({amount(runs, 'env.video.window', 'frames')}) whose action is the majority true label "
+        "of their frames; SG: the Semantic Guidance "
         "on screen after each human placement (hand out of view) is right for every part type; SC: the first robot "
         "command during each screw is the expert's next part and positions. Mean ± std over seeds "
         f"{sorted(runs.seed.unique())} (per seed the sessions are new); thesis (20 real experiments x 5) in "

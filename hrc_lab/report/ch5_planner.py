@@ -8,7 +8,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.report.runs import mean_std  # noqa: E402
+from hrc_lab.report.runs import amount, mean_std  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
 
@@ -99,12 +99,14 @@ def table_5_2_planner(runs: pd.DataFrame) -> Section:
             {"goals": cell[0], "sg_mean": sg.mean(), "sc_mean": sc.mean(), "latency_ms": part.latency_ms.median()}
         )
     text = [
-        "Planner columns of Table 5.2 with perfect action labels: generated sessions (`protocol.sessions` per seed, "
-        "20 by default; random goal, "
+        "Planner columns of Table 5.2 with perfect action labels: "
+        f"{amount(runs, 'protocol.sessions', 'generated sessions')} per goal count and seed (random goal, "
         "random human order, screw events that hand the next part to the robot) streamed through the Algorithm 3 "
         f"loop; mean ± std over seeds {sorted(runs.seed.unique())}. Latency: median per decision on this CPU, graph "
         f"construction and decoding included (thesis: {ref_ms} ms on a GPU). The thesis' numbers also include its "
-        "action detector's errors; ours isolate the planner (the detector is a later issue).",
+        "action detector's errors; ours isolate the planner. The action detector and the end-to-end pipeline "
+        "(video -> actions -> plans, the full Table 5.2) are in the ch5_perception report "
+        "([ch5_perception.md](ch5_perception.md)).",
         "",
         pd.DataFrame(rows).to_markdown(index=False),
     ]

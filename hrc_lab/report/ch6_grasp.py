@@ -8,7 +8,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.report.runs import spread  # noqa: E402
+from hrc_lab.report.runs import setting, setting_number, spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
 
@@ -41,8 +41,8 @@ def table_6_1(runs: pd.DataFrame) -> Section:
         "is not graspable, the decoded solution is right; on the unseen test scenes with new random requests of "
         "one, two or three part types. Train_Acc: graspability accuracy on the training scenes. Mean ± std over "
         f"seeds {sorted(runs.seed.unique())}; thesis values in brackets. Node features: the detector's box-head "
-        "feature of each box and of the box enlarged 1.8× (`grasp.detector.context_scale`, not in the thesis), the "
-        "label and the request flag (GVMRN_RF classifies pairs from union-box features). The ground-truth-box row "
+        f"feature of each box{_context(runs)}, the label and the request flag (GVMRN_RF classifies pairs from "
+        "union-box features). The ground-truth-box row "
         "reads the same network's features from the true boxes: its gap to ours is what detection errors cost.",
         "",
         pd.DataFrame(rows).to_markdown(index=False),
@@ -51,6 +51,17 @@ def table_6_1(runs: pd.DataFrame) -> Section:
     return Section(
         "Table 6.1: object accuracy on single images", "\n".join(text), frame, {"table_6_1.png": _bars(frame)}
     )
+
+
+def _context(runs: pd.DataFrame) -> str:
+    """How the runs' node features use the enlarged box (``grasp.detector.context_scale``, not in the thesis)."""
+    key = "grasp.detector.context_scale"
+    scale = setting_number(runs, key)
+    if scale is None:
+        return f" and of the box enlarged by `{key}` ({setting(runs, key)}; not in the thesis)"
+    if scale == 0:
+        return f" only (no enlarged-box feature: `{key}` = 0)"
+    return f" and of the box enlarged {scale:g}× (`{key}`, not in the thesis)"
 
 
 def _bars(frame: pd.DataFrame):

@@ -1,4 +1,7 @@
-"""``hrc-lab-report <topic>``: write ``reports/<topic>.md`` and its plots from the MLflow runs of its tables."""
+"""``hrc-lab-report <topic>``: write ``reports/<topic>.md`` and its plots from the MLflow runs of its tables.
+
+Each table reads its default runs (no override beyond the experiment's own sweep keys); every ablation variant
+present (runs with other overrides, e.g. ``protocol.demos=60``) follows in its own section."""
 
 from __future__ import annotations
 
@@ -14,8 +17,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("topic", choices=sorted(TOPICS), help="which report to build")
     parser.add_argument("--tracking-uri", default="sqlite:///runs/mlflow.db", help="MLflow tracking URI")
     parser.add_argument("--out", type=Path, default=Path("reports"), help="folder for the markdown and PNGs")
+    parser.add_argument(
+        "--sweep",
+        default=None,
+        metavar="ID",
+        help="read only the runs of this sweep (its folder name, e.g. 2026-11-23_19-31-20; MLflow tag `sweep`) "
+        "in every section; default: the newest finished run of every job across sweeps",
+    )
     args = parser.parse_args(argv)
-    path = build_topic(args.topic, args.tracking_uri, args.out)
+    path = build_topic(args.topic, args.tracking_uri, args.out, sweep=args.sweep)
     print(path.read_text())
     print(f"\nwrote {path}")
 

@@ -9,6 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from hrc_lab.report.runs import amount, keyed  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt  # noqa: E402
 
@@ -34,11 +35,12 @@ def _table(runs: pd.DataFrame) -> pd.DataFrame:
 def _section(runs: pd.DataFrame, title: str, note: str) -> Section:
     table = _table(runs)
     text = "\n".join([
-        note,
+        note.format(episodes=amount(runs, "protocol.episodes", "scripted-expert episodes")),
         "",
         table.to_markdown(index=False),
         "",
-        "Expert SR: share of episodes where every object ended within δr = 0.06 m of its goal, released, without "
+        "Expert SR: share of episodes where every object ended within δr = "
+        f"{keyed(runs, 'env.sim.success_threshold', 'm')} of its goal, released, without "
         "a collision (Eq. 4.7). Stage agreement: share of steps whose change-point stage (PELT on object "
         "trajectories, `hrc_lab/data/segmentation.py`) equals the expert's own pick/place × object label. Speeds "
         "are wall-clock on the machine that collected (here 2 cores, two jobs at a time, and whatever else ran then: "
@@ -64,12 +66,12 @@ def _plot(runs: pd.DataFrame):
 @register_section("collect_ch4")
 def collect_ch4(runs: pd.DataFrame) -> Section:
     return _section(runs, "Package-to-order demonstrations (Ch.4)",
-                    "100 scripted-expert episodes per n-of-m order and case (CASE 2: a simulated human packs a random "
+                    "{episodes} per n-of-m order and case (CASE 2: a simulated human packs a random "
                     "subset first), random product positions and goal configurations.")
 
 
 @register_section("collect_ch3")
 def collect_ch3(runs: pd.DataFrame) -> Section:
     return _section(runs, "Error-correction demonstrations (Ch.3)",
-                    "100 scripted-expert episodes per error-correction scenario (Table 3.1 cases, Fig. 3.4 tasks); "
+                    "{episodes} per error-correction scenario (Table 3.1 cases, Fig. 3.4 tasks); "
                     "the thesis recorded 20 demonstrations per case by keyboard teleoperation.")

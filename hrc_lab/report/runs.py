@@ -1,4 +1,11 @@
-"""Fetching the MLflow runs of an experiment as one DataFrame row per run."""
+"""Fetching the MLflow runs of an experiment as one DataFrame row per run.
+
+Runs are selected by *variant*: a job whose only overrides are the experiment file's own sweep keys (and launcher
+or Hydra settings) is variant ``default``; any other override (e.g. ``protocol.demos=60``) makes an ablation
+variant, tagged ``variant`` = ``v`` + 8 hex digits and ``variant_overrides`` = the extra overrides. Reports read
+each variant apart, so an ablation never replaces a default run. Runs logged before the tag existed are
+``default``. Only FINISHED runs are ever read (never RUNNING, KILLED or FAILED ones).
+"""
 
 from __future__ import annotations
 
@@ -8,11 +15,13 @@ from mlflow.tracking import MlflowClient
 from hrc_lab.tracking import resolve_tracking_uri
 
 KEY_TAGS = ("scenario", "cell", "method", "seed")  # scenario: the cell plus the robot-cell case
+DEFAULT_VARIANT = "default"
+PARAM_PREFIX = "param."  # params (the resolved config, dotted keys) are columns "param.<key>"
+NOT_LOGGED = "not logged"
 
 
-def fetch_runs(tracking_uri: str, experiment: str, sweep: str | None = None) -> pd.DataFrame:
-    """Finished runs of ``experiment`` (optionally one sweep's), the newest per (cell, method, seed), with tag
-    columns and one column per final metric."""
+def _finished_runs(tracking_uri: str, experiment: str, sweep: str | None) -> pd.DataFrame:
+    """Every FINISHED job run of ``experiment`` (optionally one sweep's), newest first; no summary runs."""
     client = MlflowClient(resolve_tracking_uri(tracking_uri))
     found = client.get_experiment_by_name(experiment)
     if found is None:
@@ -22,18 +31,113 @@ def fetch_runs(tracking_uri: str, experiment: str, sweep: str | None = None) -> 
         query += f" and tags.sweep = '{sweep}'"
     runs = client.search_runs([found.experiment_id], query, order_by=["attributes.start_time DESC"], max_results=50000)
     rows = [
-        {"run_id": r.info.run_id, "start_time": r.info.start_time, **r.data.tags, **r.data.metrics}
+        {
+            "run_id": r.info.run_id,
+            "start_time": r.info.start_time,
+            "status": r.info.status,
+            **{f"{PARAM_PREFIX}{k}": v for k, v in r.data.params.items()},
+            **r.data.tags,
+            **r.data.metrics,
+        }
         for r in runs
-        if r.data.tags.get("kind") != "summary"
+        if r.info.status == "FINISHED" and r.data.tags.get("kind") != "summary"
     ]
     if not rows:
         return pd.DataFrame()
-    frame = pd.DataFrame(rows)
+    frame = pd.DataFrame(rows).sort_values("start_time", ascending=False, kind="stable")
     frame["seed"] = frame["seed"].astype(int)
     if "scenario" not in frame:  # runs logged before the scenario tag existed
         frame["scenario"] = frame["cell"]
     frame["scenario"] = frame["scenario"].fillna(frame["cell"])
-    return frame.drop_duplicates(subset=list(KEY_TAGS), keep="first").reset_index(drop=True)
+    for column, missing in (("sweep", "none"), ("variant", DEFAULT_VARIANT), ("variant_overrides", "")):
+        frame[column] = frame[column].fillna(missing) if column in frame else missing  # older runs lack the tag
+    return frame.reset_index(drop=True)
+
+
+def fetch_runs(
+    tracking_uri: str, experiment: str, sweep: str | None = None, variant: str | None = DEFAULT_VARIANT
+) -> pd.DataFrame:
+    """Finished runs of ``experiment`` of one ``variant`` (``None``: every variant), optionally of one sweep, the
+    newest per (scenario, cell, method, seed) within its variant. Columns: ``run_id``, ``start_time``, the tags
+    (``sweep`` and ``variant`` always), one column per final metric and ``param.<key>`` per logged param."""
+    frame = _finished_runs(tracking_uri, experiment, sweep)
+    if frame.empty:
+        return frame
+    if variant is not None:
+        frame = frame[frame["variant"] == variant]
+    frame = frame.drop_duplicates(subset=[*KEY_TAGS, "variant"], keep="first")
+    return frame.reset_index(drop=True)
+
+
+def variants_of(runs: pd.DataFrame) -> dict[str, str]:
+    """Variant -> its overrides ("" for default) among ``runs``: default first, then ablations by overrides."""
+    if runs.empty:
+        return {}
+    pairs = runs.drop_duplicates("variant")[["variant", "variant_overrides"]]
+    found = dict(zip(pairs["variant"], pairs["variant_overrides"].astype(str)))
+    ordered = sorted(found.items(), key=lambda item: (item[0] != DEFAULT_VARIANT, item[1], item[0]))
+    return dict(ordered)
+
+
+def list_variants(tracking_uri: str, experiment: str, sweep: str | None = None) -> dict[str, str]:
+    """The variants with finished runs in ``experiment`` (optionally one sweep) -> their overrides."""
+    return variants_of(fetch_runs(tracking_uri, experiment, sweep, variant=None))
+
+
+def sweeps_line(runs: pd.DataFrame) -> str:
+    """ "Runs: sweep 2026-11-23_19-31-20 (24 runs)", several sweeps comma-separated with their run counts."""
+    counts = runs["sweep"].value_counts().sort_index()
+    plural = "sweeps" if len(counts) > 1 else "sweep"
+    listed = ", ".join(f"{sweep} ({n} run{'s' if n != 1 else ''})" for sweep, n in counts.items())
+    variants = sorted(set(runs["variant"]) - {DEFAULT_VARIANT}) if "variant" in runs else []
+    suffix = f"; variant {', '.join(variants)}" if variants else ""
+    return f"Runs: {plural} {listed}{suffix}"
+
+
+def setting_values(runs: pd.DataFrame, key: str) -> list[str]:
+    """The distinct logged values of the config key ``key`` (e.g. ``protocol.n_folds``) among ``runs``."""
+    column = f"{PARAM_PREFIX}{key}"
+    if column not in runs:
+        return []
+    return sorted({str(v) for v in runs[column].dropna()}, key=_number_first)
+
+
+def setting(runs: pd.DataFrame, key: str) -> str:
+    """The logged value of a config key as text ("5"; "20 or 60" if the runs differ), "not logged" if no run
+    logged it (runs older than the key)."""
+    values = setting_values(runs, key)
+    return " or ".join(values) if values else NOT_LOGGED
+
+
+def amount(runs: pd.DataFrame, key: str, noun: str) -> str:
+    """ "180 test scenarios" from the logged ``key``, or "test scenarios (`protocol.missing_tests` not logged)"."""
+    value = setting(runs, key)
+    return f"{noun} (`{key}` {NOT_LOGGED})" if value == NOT_LOGGED else f"{value} {noun}"
+
+
+def keyed(runs: pd.DataFrame, key: str, unit: str = "") -> str:
+    """ "0.06 m (`env.sim.success_threshold`)" from the logged ``key``, or "`env.sim.success_threshold` (not
+    logged)"."""
+    value = setting(runs, key)
+    return f"`{key}` ({NOT_LOGGED})" if value == NOT_LOGGED else f"{value}{' ' + unit if unit else ''} (`{key}`)"
+
+
+def setting_number(runs: pd.DataFrame, key: str) -> float | None:
+    """The logged value of a numeric config key when every run that logged it agrees, else None."""
+    values = setting_values(runs, key)
+    if len(values) != 1:
+        return None
+    try:
+        return float(values[0])
+    except ValueError:
+        return None
+
+
+def _number_first(value: str):
+    try:
+        return (0, float(value), value)
+    except ValueError:
+        return (1, 0.0, value)
 
 
 def mean_std(frame: pd.DataFrame, by: list[str], metric: str) -> pd.DataFrame:

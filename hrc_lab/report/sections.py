@@ -16,6 +16,7 @@ class Section:
     table: pd.DataFrame
     figures: dict = field(default_factory=dict)  # file name -> matplotlib figure
     artifacts: dict = field(default_factory=dict)  # file name -> (MLflow run id, artifact path) to copy
+    sources: str = ""  # which sweeps (and variant) the section read, set by hrc_lab.report.build.section_of
 
 
 SECTIONS: dict[str, Callable[[pd.DataFrame], Section]] = {}
@@ -45,15 +46,17 @@ TOPICS = {
     "ch3_motion": (
         "Ch.3 two-level LfD motion planner: error correction (Table 3.1) and the neural dynamic planner (Fig. 3.10)",
         "Trials run in our robosuite UR5e error-correction cells (`hrc_lab/env/sim/error_correction.py`), not the "
-        "thesis' CoppeliaSim UR10; demonstrations come from the scripted expert (20 per case and seed), segmented "
-        "into stages by PELT change points (`hrc_lab/data/segmentation.py`), 5 re-sampled sub-goals per stage. "
+        "thesis' CoppeliaSim UR10; demonstrations come from the scripted expert (how many per case and seed: each "
+        "section, read from its runs), segmented into stages by PELT change points (`hrc_lab/data/segmentation.py`), "
+        "with re-sampled sub-goals per stage. "
         "The neural dynamic planner sees Δ = s − r in the arm's base frame (radial, tangential, vertical).",
         [("ch3/table_3_1", "table_3_1"), ("ch3/fig_3_10", "fig_3_10")],
     ),
     "ch4_motion": (
         "Ch.4 motion module: task-conditioned sub-goal planner and neural dynamic planner vs. VI, GPR, MLP",
         "Closed-loop trials run in our robosuite UR5e cell (`hrc_lab/env/sim/`), not the thesis' CoppeliaSim UR10; "
-        "demonstrations come from the scripted expert (20 per cell and seed, 3 designed sub-goals per stage). The "
+        "demonstrations come from the scripted expert (how many per cell and seed: the section, read from its runs; "
+        "3 designed sub-goals per stage, `hrc_lab.motion.two_level.DESIGNED_SUBGOALS`). The "
         "neural dynamic planner sees Δ = s − r in the arm's base frame (radial, tangential, vertical; the thesis does "
         "not name the frame).",
         [("ch4/table_4_2", "table_4_2")],

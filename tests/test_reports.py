@@ -1,0 +1,178 @@
+"""Reports read one variant of finished runs: an ablation (a run with overrides beyond the experiment's own sweep
+keys) never replaces a default run, unfinished runs are never read, every section names the sweeps it read, and
+the prose states settings from the runs' logged params."""
+
+from __future__ import annotations
+
+import re
+import time
+
+import pandas as pd
+import pytest
+from mlflow.tracking import MlflowClient
+from omegaconf import OmegaConf
+
+from hrc_lab.config import LoggerConfig
+from hrc_lab.report.build import build_topic
+from hrc_lab.report.callbacks import SweepSummary
+from hrc_lab.report.cli import main as report_main
+from hrc_lab.report.runs import fetch_runs, list_variants, setting
+from hrc_lab.report.sections import SECTIONS, load_sections
+from hrc_lab.tracking import RunTracker
+
+EXPERIMENT = "ch4/table_4_1"
+TITLE = "## Table 4.1: reasoning success rates"
+LEGACY_SWEEP, DEFAULT_SWEEP, ABLATION_SWEEP, UNFINISHED_SWEEP = (
+    "2026-11-20_08-00-00",
+    "2026-11-21_09-00-00",
+    "2026-11-22_10-00-00",
+    "2026-11-23_11-00-00",
+)
+ABLATION = "protocol.min_demos=60"
+
+
+def log_run(logger: LoggerConfig, *, cell: str, sweep: str, sr: float, variant: str | None = "default",
+            extra: str = "", min_demos: int = 200, status: str = "FINISHED") -> str:
+    """One run as ``hrc-lab experiment=ch4/table_4_1`` logs it: tags, resolved config as params, final metrics.
+    ``variant=None`` leaves out the variant tags (runs logged before they existed)."""
+    base = f"env=package_to_order_{cell} reasoning=ours seed=0"
+    tags = {"chapter": "ch4", "table": "table_4_1", "experiment": EXPERIMENT, "method": "ours", "cell": cell,
+            "scenario": cell, "seed": "0", "sweep": sweep}
+    if variant is not None:
+        tags |= {"variant": variant, "overrides": f"{base} {extra}".strip(), "variant_overrides": extra}
+    tracker = RunTracker(logger, EXPERIMENT, f"{EXPERIMENT}-ours-{cell}-seed0", tags)
+    tracker.__enter__()
+    cfg = OmegaConf.create({"name": EXPERIMENT, "seed": 0,
+                            "protocol": {"name": "ch4_table_4_1", "min_demos": min_demos, "n_folds": 5}})
+    tracker.log_config(cfg)
+    tracker.log_metrics({"sr": sr, "latency_ms_batch1": 1.25, "latency_ms_batched": 0.05})
+    if status == "FINISHED":
+        tracker.__exit__(None, None, None)
+    elif status != "RUNNING":
+        tracker.client.set_terminated(tracker.run_id, status)
+    time.sleep(0.02)  # start times in ms: each run is strictly newer than the one before
+    return tracker.run_id
+
+
+def section_text(markdown: str, heading: str) -> str:
+    """The body of the section whose heading line is exactly ``heading`` (up to the next section)."""
+    lines = markdown.splitlines()
+    start = lines.index(heading)
+    end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("## ")), len(lines))
+    return "\n".join(lines[start:end])
+
+
+def row_of(section: str, method: str = "Ours") -> str:
+    return next(line for line in section.splitlines() if line.startswith(f"| {method} "))
+
+
+@pytest.fixture
+def store(tmp_path):
+    """A sqlite MLflow store with, oldest first: a 3of5 run logged before the variant tags, the default 4of5 run,
+    a newer ablation of it, and newer RUNNING and KILLED default runs of the same job."""
+    logger = LoggerConfig(tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}",
+                          artifact_root=str(tmp_path / "mlartifacts"))
+    log_run(logger, cell="3of5", sweep=LEGACY_SWEEP, sr=0.7, variant=None)
+    log_run(logger, cell="4of5", sweep=DEFAULT_SWEEP, sr=0.9)
+    log_run(logger, cell="4of5", sweep=ABLATION_SWEEP, sr=0.1, variant="vdeadbeef", extra=ABLATION, min_demos=60)
+    log_run(logger, cell="4of5", sweep=UNFINISHED_SWEEP, sr=0.55, status="RUNNING")
+    log_run(logger, cell="4of5", sweep=UNFINISHED_SWEEP, sr=0.35, status="KILLED")
+    return logger
+
+
+def test_fetch_runs_selects_one_variant_and_only_finished_runs(store):
+    uri = store.tracking_uri
+    statuses = sorted(r.info.status for r in MlflowClient(uri).search_runs(
+        [MlflowClient(uri).get_experiment_by_name(EXPERIMENT).experiment_id]))
+    assert statuses == ["FINISHED", "FINISHED", "FINISHED", "KILLED", "RUNNING"]
+
+    default = fetch_runs(uri, EXPERIMENT).set_index("cell")
+    assert sorted(default.index) == ["3of5", "4of5"]
+    assert default.loc["4of5", "sr"] == pytest.approx(0.9)  # not the newer ablation, RUNNING or KILLED run
+    assert default.loc["3of5", "sr"] == pytest.approx(0.7)  # no variant tag: a default run
+    assert set(default.variant) == {"default"} and set(default.status) == {"FINISHED"}
+    assert default.loc["4of5", "sweep"] == DEFAULT_SWEEP and default.loc["3of5", "sweep"] == LEGACY_SWEEP
+    assert default.loc["4of5", "param.protocol.min_demos"] == "200"
+
+    ablation = fetch_runs(uri, EXPERIMENT, variant="vdeadbeef")
+    assert ablation.sr.tolist() == [pytest.approx(0.1)] and ablation.sweep.tolist() == [ABLATION_SWEEP]
+    assert len(fetch_runs(uri, EXPERIMENT, variant=None)) == 3
+    assert fetch_runs(uri, EXPERIMENT, sweep=UNFINISHED_SWEEP, variant=None).empty
+    assert fetch_runs(uri, EXPERIMENT, sweep=ABLATION_SWEEP).empty  # that sweep holds no default run
+    assert list_variants(uri, EXPERIMENT) == {"default": "", "vdeadbeef": ABLATION}
+    assert list_variants(uri, EXPERIMENT, sweep=DEFAULT_SWEEP) == {"default": ""}
+
+
+def test_report_keeps_default_rows_and_gives_each_ablation_its_own_section(store, tmp_path):
+    path = build_topic("ch4_reasoning", store.tracking_uri, tmp_path / "reports")
+    markdown = path.read_text()
+    print(markdown)
+
+    default = section_text(markdown, TITLE)
+    assert f"Runs: sweeps {LEGACY_SWEEP} (1 run), {DEFAULT_SWEEP} (1 run)" in default
+    assert "0.90 ± 0.00" in row_of(default) and "0.70 ± 0.00" in row_of(default)
+    assert "0.10" not in default and "0.55" not in default and "0.35" not in default
+    assert "n = 5 (`protocol.n_folds`)" in default  # read from the runs' params, not typed
+
+    ablation = section_text(markdown, f"{TITLE} — ablation: {ABLATION}")
+    assert f"Runs: sweep {ABLATION_SWEEP} (1 run); variant vdeadbeef" in ablation
+    assert "0.10 ± 0.00" in row_of(ablation) and "0.90" not in ablation and "3of5" not in ablation
+    assert f"Reproduce: `hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib {ABLATION}`" in markdown
+    assert markdown.index(TITLE + "\n") < markdown.index(f"{TITLE} — ablation")
+    assert markdown.count("— ablation:") == 1
+    assert "0.55" not in markdown and "0.35" not in markdown  # RUNNING and KILLED runs never read
+    assert "## fig_4_7\n\nNo finished default runs yet" in markdown
+    images = re.findall(r"!\[(table_4_1[^\]]*)\]", markdown)
+    assert images == ["table_4_1.png", "table_4_1_vdeadbeef.png"]
+    assert all((tmp_path / "reports" / "ch4_reasoning" / name).is_file() for name in images)
+
+
+def test_sweep_option_restricts_every_section_to_one_sweep(store, tmp_path, capsys):
+    out = tmp_path / "reports"
+    report_main(["ch4_reasoning", "--tracking-uri", store.tracking_uri, "--out", str(out), "--sweep", DEFAULT_SWEEP])
+    markdown = (out / "ch4_reasoning.md").read_text()
+    default = section_text(markdown, TITLE)
+    assert f"Runs: sweep {DEFAULT_SWEEP} (1 run)" in default and LEGACY_SWEEP not in default
+    assert "0.90 ± 0.00" in row_of(default) and "3of5" not in default
+    assert "— ablation:" not in markdown and f"--sweep {DEFAULT_SWEEP}" in markdown
+
+    markdown = build_topic("ch4_reasoning", store.tracking_uri, out, sweep=ABLATION_SWEEP).read_text()
+    assert f"## table_4_1\n\nNo finished default runs in sweep {ABLATION_SWEEP}." in markdown
+    assert "0.10 ± 0.00" in row_of(section_text(markdown, f"{TITLE} — ablation: {ABLATION}"))
+
+
+def test_sweep_summary_reads_its_own_sweep_and_variant(store, tmp_path):
+    sweep_dir = tmp_path / "multirun" / ABLATION_SWEEP
+    config = OmegaConf.create({
+        "name": EXPERIMENT, "table": "table_4_1", "chapter": "ch4",
+        "logger": {"tracking_uri": store.tracking_uri, "artifact_root": store.artifact_root},
+        "hydra": {"sweep": {"dir": str(sweep_dir)}},
+    })
+    SweepSummary().on_multirun_end(config)
+    summary = (sweep_dir / "summary.md").read_text()
+    assert summary.startswith(f"{TITLE} — ablation: {ABLATION}\n")
+    assert f"Runs: sweep {ABLATION_SWEEP} (1 run); variant vdeadbeef" in summary
+    assert "0.10 ± 0.00" in row_of(summary) and "0.90" not in summary
+    client = MlflowClient(store.tracking_uri)
+    experiment = client.get_experiment_by_name(EXPERIMENT).experiment_id
+    (summary_run,) = client.search_runs([experiment], "tags.kind = 'summary'")
+    assert summary_run.data.tags["variant"] == "vdeadbeef"
+    assert len(fetch_runs(store.tracking_uri, EXPERIMENT, variant=None)) == 3  # summary runs are not jobs
+
+
+def test_prose_reads_settings_from_params_or_says_not_logged():
+    load_sections()
+    runs = pd.DataFrame({"method": ["gnn_att", "gnn_att"], "seed": [0, 1], "cell": ["clutter"] * 2,
+                         "param.grasp.detector.context_scale": ["1.8", "1.8"]})
+    assert "enlarged 1.8× (`grasp.detector.context_scale`" in SECTIONS["table_6_1"](runs).markdown
+    off = SECTIONS["table_6_1"](runs.assign(**{"param.grasp.detector.context_scale": "0.0"})).markdown
+    assert "no enlarged-box feature" in off and "1.8" not in off
+    old = SECTIONS["table_6_1"](runs.drop(columns="param.grasp.detector.context_scale")).markdown
+    assert "not logged" in old and "1.8" not in old
+    assert setting(runs, "protocol.n_folds") == "not logged"
+
+    planner = pd.DataFrame({"cell": ["3goals"], "seed": [0], "sg_acc": [0.9], "sc_acc": [0.8],
+                            "n_assembly_events": [40], "n_screw_events": [12], "latency_ms": [2.0],
+                            "param.protocol.sessions": ["20"]})
+    text = SECTIONS["table_5_2_planner"](planner).markdown
+    assert "later issue" not in text and "ch5_perception" in text and "20 generated sessions" in text
