@@ -16,9 +16,10 @@ class TorchReasonerConfig:
     steps_per_epoch: int = 50  # an epoch is this many batches sampled with replacement
 
     def __post_init__(self) -> None:
-        for key in ("lr", "batch_size", "steps_per_epoch"):
-            if getattr(self, key) <= 0:
-                raise ValueError(f"reasoning.{key} must be > 0, got {getattr(self, key)}")
+        """Every numeric setting of a torch reasoner (rates, sizes, layer counts) must be > 0."""
+        for key, value in vars(self).items():
+            if isinstance(value, (int, float)) and not isinstance(value, bool) and value <= 0:
+                raise ValueError(f"reasoning.{key} must be > 0, got {value}")
 
 
 @dataclass
@@ -58,6 +59,8 @@ class RandomForestConfig:
     def __post_init__(self) -> None:
         if self.n_estimators < 1:
             raise ValueError(f"reasoning.n_estimators must be >= 1, got {self.n_estimators}")
+        if self.max_depth is not None and self.max_depth < 1:
+            raise ValueError(f"reasoning.max_depth must be >= 1 or null, got {self.max_depth}")
 
 
 REASONERS.register("ours", ChainSAGEConfig, "hrc_lab.reasoning.chain_sage:ChainSAGEReasoner")

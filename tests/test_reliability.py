@@ -1,0 +1,208 @@
+"""A killed or bad run never looks successful: checks on the user's values in every group, signals -> KILLED with
+exit 143/130, stale RUNNING runs, checkpoints that resume to the same result, run identity by variant."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import lightning.pytorch as pl
+import pytest
+import torch
+from mlflow.tracking import MlflowClient
+
+from hrc_lab.cli import check_resumable, run_name, variant_of
+from hrc_lab.config import LoggerConfig, validate_config
+from hrc_lab.interrupts import RunInterrupted, signals_raise
+from hrc_lab.motion.training import SupervisedModule, TensorDataModule
+from hrc_lab.registry import ConfigError
+from hrc_lab.runs_cli import stale
+from hrc_lab.tracking import RunTracker, process_identity
+from hrc_lab.training import RandomState, RunCheckpoint, Trainer
+
+
+@pytest.mark.parametrize(
+    "experiment, override, key",
+    [
+        ("ch4/table_4_1", "trainer.max_epochs=0", "trainer.max_epochs"),
+        ("ch4/table_4_1", "trainer.max_epochs=-1", "trainer.max_epochs"),
+        ("ch4/table_4_1", "trainer.max_steps=0", "trainer.max_steps"),
+        ("ch4/table_4_1", "trainer.checkpoint_every_n_epochs=0", "trainer.checkpoint_every_n_epochs"),
+        ("ch4/table_4_1", "num_threads=0", "num_threads"),
+        ("ch4/table_4_1", "resume_from=last", "resume_from"),
+        ("ch4/table_4_1", "env.n_selected=0", "env.n_selected"),
+        ("ch4/table_4_1", "reasoning.hidden=0", "reasoning.hidden"),
+        ("ch4/table_4_1", "reasoning=gnn reasoning.layers=0", "reasoning.layers"),
+        ("ch4/table_4_1", "reasoning=rf reasoning.max_depth=0", "reasoning.max_depth"),
+        ("ch5/fig_5_7", "reasoning.word_dim=0", "reasoning.word_dim"),
+        ("ch4/table_4_2", "motion.ndp.mode=jump", "motion.ndp.mode"),
+        ("ch4/table_4_2", "motion.kind=svm", "motion.kind"),
+        ("ch5/fig_5_6", "perception.epochs=0", "perception.epochs"),
+        ("ch6/table_6_1", "grasp.lr=-1", "grasp.lr"),
+        ("ch4/table_4_1", "protocol.min_demos=2", "protocol.min_demos"),
+        ("ch4/table_4_1", "logger.tracking_uri=nowhere", "logger.tracking_uri"),
+    ],
+)
+def test_every_group_checks_the_users_values(compose_config, experiment, override, key):
+    """Each group's schema checks run on the merged values (the trainer's once ran on its defaults only)."""
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+        validate_config(compose_config(f"experiment={experiment}", *override.split()))
+
+
+@pytest.mark.parametrize("signum, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_a_signal_marks_the_run_killed(tmp_path, signum, code):
+    logger = LoggerConfig(tracking_uri=f"sqlite:///{tmp_path}/mlflow.db", artifact_root=str(tmp_path / "art"))
+    with pytest.raises(RunInterrupted) as caught:
+        with signals_raise(), RunTracker(logger, "exp", "job", {"seed": "0"}) as tracker:
+            os.kill(os.getpid(), signum)
+            time.sleep(5)  # the handler raises before this ends
+    assert caught.value.exit_code == code
+    run = MlflowClient(tracker.tracking_uri).get_run(tracker.run_id)
+    assert run.info.status == "KILLED"
+    assert run.data.tags["signal"] == signal.Signals(signum).name
+    assert run.data.tags["pid"] == str(os.getpid()) and run.data.tags["host"]
+    assert signal.getsignal(signal.SIGTERM) is not None  # handlers restored
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_an_exception_marks_the_run_failed(tmp_path):
+    logger = LoggerConfig(tracking_uri=f"sqlite:///{tmp_path}/mlflow.db", artifact_root=str(tmp_path / "art"))
+    with pytest.raises(RuntimeError), RunTracker(logger, "exp", "job", {}) as tracker:
+        raise RuntimeError("boom")
+    assert MlflowClient(tracker.tracking_uri).get_run(tracker.run_id).info.status == "FAILED"
+
+
+def test_stale_marks_runs_whose_process_is_gone(tmp_path):
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    client = MlflowClient(uri)
+    experiment = client.create_experiment("exp", artifact_location=(tmp_path / "art").as_uri())
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    dead = client.create_run(experiment, tags=process_identity(gone.pid)).info.run_id
+    reused = client.create_run(experiment, tags={**process_identity(), "process_start": "other-boot:1"}).info.run_id
+    alive = client.create_run(experiment, tags=process_identity()).info.run_id
+    elsewhere = client.create_run(experiment, tags={"host": "another-node", "pid": "1"}).info.run_id
+
+    assert {run_id for run_id, _ in stale(uri, dry_run=True, other_hosts_hours=None)} == {dead, reused}
+    assert client.get_run(dead).info.status == "RUNNING"  # a dry run changes nothing
+
+    found = dict(stale(uri, dry_run=False, other_hosts_hours=None))
+    assert "is gone" in found[dead] and "another process" in found[reused]
+    assert client.get_run(dead).info.status == "KILLED"
+    assert client.get_run(reused).info.status == "KILLED"
+    assert client.get_run(alive).info.status == "RUNNING"
+    assert client.get_run(elsewhere).info.status == "RUNNING"
+    assert elsewhere in dict(stale(uri, dry_run=False, other_hosts_hours=0.0))
+
+
+def _fit(checkpoints: Path, max_epochs: int, resume: Path | None = None) -> torch.Tensor:
+    """A small network with dropout, trained from a fixed seed; returns its final weights."""
+    pl.seed_everything(0, verbose=False)
+    network = torch.nn.Sequential(torch.nn.Linear(3, 16), torch.nn.Dropout(0.3), torch.nn.Linear(16, 1))
+    data = [torch.randn(64, 3), torch.randn(64, 1)]
+    module = SupervisedModule(network, lambda net, x, y: (((net(x) - y) ** 2).mean(), {}), lr=1e-2)
+    uploaded = []
+    callbacks = [RandomState(), RunCheckpoint(checkpoints, 1, uploaded.append)]
+    trainer = Trainer(max_epochs=max_epochs, logger=False, callbacks=callbacks, enable_progress_bar=False,
+                      enable_model_summary=False, deterministic=True, resume_checkpoint=resume)
+    trainer.fit(module, datamodule=TensorDataModule(data, 8, 5))
+    assert uploaded and uploaded[-1].name == "last.ckpt"
+    return torch.cat([p.detach().flatten() for p in network.parameters()])
+
+
+def test_a_resumed_fit_ends_where_an_uninterrupted_one_does(tmp_path):
+    """Stop after 2 of 5 epochs, resume from its checkpoint: same weights as 5 epochs straight (the checkpoint
+    carries the generators' states, so the resumed epochs draw the same batches and dropout masks)."""
+    straight = _fit(tmp_path / "straight", 5)
+    _fit(tmp_path / "interrupted", 2)
+    resumed = _fit(tmp_path / "resumed", 5, resume=tmp_path / "interrupted" / "last.ckpt")
+    assert torch.equal(straight, resumed)
+    assert not torch.equal(straight, _fit(tmp_path / "short", 2))
+
+
+def test_variant_names_overrides_beyond_the_sweep_keys():
+    sweep_keys = ["env", "reasoning", "seed"]
+    assert variant_of(["experiment=ch4/table_4_1", "env=package_to_order_4of5", "seed=0"], sweep_keys) == (
+        "default", [])
+    assert variant_of(["logger.tracking_uri=http://x:5000", "num_threads=2", "resume_from=ab"], sweep_keys)[0] == (
+        "default")
+    variant, extra = variant_of(["seed=0", "trainer.max_epochs=40"], sweep_keys)
+    assert variant.startswith("v") and len(variant) == 9 and extra == ["trainer.max_epochs=40"]
+    assert variant != variant_of(["seed=0", "trainer.max_epochs=80"], sweep_keys)[0]
+    assert variant == variant_of(["trainer.max_epochs=40", "seed=1"], sweep_keys)[0]  # order-free, seed-free
+
+
+def test_run_names_differ_by_variant(compose_config):
+    cfg = compose_config("experiment=ch4/table_4_1")
+    assert run_name(cfg, "5of6") == "ch4/table_4_1-ours-5of6-seed0"
+    assert run_name(cfg, "5of6", "v1234abcd") == "ch4/table_4_1-ours-5of6-seed0-v1234abcd"
+
+
+def test_resume_from_is_checked_before_work(compose_config, tmp_path):
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    overrides = ["experiment=ch4/table_4_1", f"logger.tracking_uri={uri}", f"logger.artifact_root={tmp_path}/art"]
+    parent_cfg = compose_config(*overrides)
+    validated = validate_config(parent_cfg)
+    tags = {"experiment": "ch4/table_4_1"}
+    with pytest.raises(RunInterrupted), RunTracker(validated.logger, "ch4/table_4_1", "job", tags) as parent:
+        parent.log_config(parent_cfg)
+        raise RunInterrupted(signal.SIGTERM)
+
+    same = compose_config(*overrides, f"resume_from={parent.run_id}")
+    check_resumable(validate_config(same), same)  # a KILLED run of the same config: fine
+
+    other = compose_config(*overrides, f"resume_from={parent.run_id}", "trainer.max_epochs=3")
+    with pytest.raises(ConfigError, match=r"resume_from: .*trainer\.max_epochs"):
+        check_resumable(validate_config(other), other)
+    unknown = compose_config(*overrides, f"resume_from={'0' * 32}")
+    with pytest.raises(ConfigError, match="resume_from: no MLflow run"):
+        check_resumable(validate_config(unknown), unknown)
+
+
+TINY_JOB = ["experiment=ch4/table_4_1", "hydra.mode=RUN", "env=package_to_order_2of3", "reasoning=ours", "seed=0",
+            "protocol.min_demos=20", "trainer.max_epochs=30"]
+
+
+def _runs(uri: str) -> list:
+    client = MlflowClient(uri)
+    return client.search_runs([e.experiment_id for e in client.search_experiments()],
+                              order_by=["attributes.start_time ASC"])
+
+
+@pytest.mark.slow
+def test_kill_then_resume_gives_the_uninterrupted_result(tmp_path, console_script):
+    """SIGTERM mid-training: exit 143 and a KILLED run; resume_from continues from its checkpoint into a new
+    FINISHED run tagged with its parent, with the final metrics of an uninterrupted run of the same seed."""
+    runs = tmp_path / "runs"
+    env = dict(os.environ, HRC_LAB_RUNS=str(runs), PYTHONWARNINGS="ignore")
+    uri = f"sqlite:///{runs}/mlflow.db"
+    job = subprocess.Popen([console_script("hrc-lab"), *TINY_JOB], env=env, stdout=subprocess.DEVNULL,
+                           stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 240
+    while not list(runs.glob("hydra/ch4/table_4_1/*/checkpoints/model/last.ckpt")):
+        assert job.poll() is None and time.monotonic() < deadline, "no checkpoint before the job ended"
+        time.sleep(0.2)
+    time.sleep(2)
+    job.send_signal(signal.SIGTERM)
+    _, stderr = job.communicate(timeout=120)
+    assert job.returncode == 143, stderr[-2000:]
+    (killed,) = _runs(uri)
+    assert killed.info.status == "KILLED" and killed.data.tags["signal"] == "SIGTERM"
+    killed_epochs = killed.data.metrics["epoch"]
+    assert killed_epochs < 29
+
+    for extra in ([f"resume_from={killed.info.run_id}"], []):
+        result = subprocess.run([console_script("hrc-lab"), *TINY_JOB, *extra], env=env, capture_output=True,
+                                text=True, timeout=300)
+        assert result.returncode == 0, result.stderr[-2000:]
+    _, resumed, straight = _runs(uri)
+    assert resumed.info.status == straight.info.status == "FINISHED"
+    assert resumed.data.tags["resumed_from"] == killed.info.run_id
+    epochs = [m.value for m in MlflowClient(uri).get_metric_history(resumed.info.run_id, "epoch")]
+    assert epochs[0] > 0, "the resumed run trained from scratch"
+    for metric in ("train_loss", "sr", "acc_o", "acc_g"):
+        assert resumed.data.metrics[metric] == straight.data.metrics[metric], metric
