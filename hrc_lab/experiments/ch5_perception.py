@@ -10,8 +10,6 @@ the whole clip set (seed ``data_seed``, cached) serves every job; ``seed`` fixes
 
 from __future__ import annotations
 
-import hashlib
-import json
 import tempfile
 import time
 from dataclasses import asdict
@@ -24,6 +22,7 @@ import torch
 from matplotlib.figure import Figure
 from tqdm import tqdm
 
+from hrc_lab.cache import cache_key, cached
 from hrc_lab.data.files import DataFileError, existing_file, load_torch, load_weights
 from hrc_lab.env.assemble_to_order import (
     SCREW,
@@ -36,7 +35,6 @@ from hrc_lab.env.assemble_to_order import (
     scenarios,
 )
 from hrc_lab.env.assembly_video import Clip, SessionStep, render_action_clip, render_session
-from hrc_lab.experiments.cache import cached
 from hrc_lab.experiments.ch5_planner import train_planner
 from hrc_lab.experiments.context import RunContext
 from hrc_lab.perception.action_detector import ActionDetector, ActionWindows
@@ -119,7 +117,7 @@ def shared_detector(ctx: RunContext, data: ActionSet) -> ActionDetector:
     spec = ctx.cfg.env
     identity = {"data": action_set_key(spec, spec.video, protocol.clips_per_class, protocol.data_seed,
                                        window_sizes(ctx)), "perception": asdict(cfg)}
-    key = hashlib.sha1(json.dumps(identity, sort_keys=True, default=str).encode()).hexdigest()[:12]
+    key = cache_key(identity)
 
     def build(path: Path) -> None:
         detector = train_detector(ctx, data, protocol.data_seed, "detector")

@@ -8,9 +8,6 @@ reads the same images through the same detector; ``seed`` fixes the requests and
 
 from __future__ import annotations
 
-import fcntl
-import hashlib
-import json
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -19,8 +16,8 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
+from hrc_lab.cache import cache_key, cached
 from hrc_lab.env.clutter import ClutterScene, ClutterSpec
-from hrc_lab.experiments.cache import cached
 from hrc_lab.experiments.context import RunContext
 from hrc_lab.grasp import GRASPS
 from hrc_lab.grasp.detector import detector_cache_key, load_or_train_detector
@@ -35,7 +32,7 @@ def scene_set(ctx: RunContext, spec: ClutterSpec, stream: int, count: int) -> li
     from hrc_lab.env.clutter_scene import generate_scenes, load_scenes, save_scenes
 
     seeds = [ctx.cfg.protocol.data_seed * 1_000_000 + stream * 100_000 + i for i in range(count)]
-    key = hashlib.sha1(json.dumps([asdict(spec), seeds[0], count], sort_keys=True).encode()).hexdigest()[:12]
+    key = cache_key([asdict(spec), seeds[0], count])
     path = Path(ctx.cfg.raw.paths.runs_dir) / "cache" / "ch6" / f"scenes_{key}.npz"
     return load_scenes(cached(path, lambda p: save_scenes(p, generate_scenes(spec, seeds, progress=True))))
 
@@ -45,10 +42,7 @@ def detector_for(ctx: RunContext, train_scenes: list[ClutterScene]):
     cfg = ctx.cfg.grasp.detector
     key = detector_cache_key(cfg, [s.seed for s in train_scenes])
     cache_dir = Path(ctx.cfg.raw.paths.runs_dir) / "cache" / "ch6"
-    cache_dir.mkdir(parents=True, exist_ok=True)
-    with open(cache_dir / f"detector_{key}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        return load_or_train_detector(cfg, train_scenes, lambda: ctx.trainer("detector/"), cache_dir, key)
+    return load_or_train_detector(cfg, train_scenes, lambda: ctx.trainer("detector/"), cache_dir, key)
 
 
 def random_request(rng: np.random.Generator, types: list[str], k: int | None = None) -> set[str] | None:

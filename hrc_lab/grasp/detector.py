@@ -38,8 +38,6 @@ the closing direction (and the detector does not need rotations: the parts come 
 
 from __future__ import annotations
 
-import hashlib
-import json
 import os
 import time
 from collections import OrderedDict
@@ -59,6 +57,7 @@ from torchvision.models.resnet import BasicBlock
 from torchvision.ops import MultiScaleRoIAlign, box_iou, nms
 from torchvision.ops.feature_pyramid_network import FeaturePyramidNetwork
 
+from hrc_lab.cache import cache_key, cached
 from hrc_lab.data.files import DataFileError, load_torch, load_weights
 from hrc_lab.env.clutter import PART_TYPES, ClutterScene
 from hrc_lab.grasp.configs import LEVELS, DetectorConfig
@@ -405,30 +404,31 @@ def detector_cache_key(cfg: DetectorConfig, scene_seeds: Sequence[int]) -> str:
     """A short hash of the config and the (ordered) seeds of the training scenes."""
     # oracle and trained modes, with or without context features, share the network
     settings = {k: v for k, v in asdict(cfg).items() if k not in ("mode", "context_scale")}
-    payload = json.dumps({"cfg": settings, "seeds": [int(s) for s in scene_seeds]}, sort_keys=True)
-    return hashlib.sha1(payload.encode()).hexdigest()[:16]
+    return cache_key({"cfg": settings, "seeds": [int(s) for s in scene_seeds]}, length=16)
 
 
 def load_or_train_detector(cfg: DetectorConfig, scenes: Sequence[ClutterScene],
                            trainer_factory: Callable[[], pl.Trainer], cache_dir: str | os.PathLike,
                            key: str) -> tuple[ObjectDetector, dict]:
     """The detector trained on ``scenes``, from ``<cache_dir>/detector_<key>.pt`` if present, else trained and
-    saved there. ``info``: train_seconds (of the original training), cached, path."""
-    path = Path(cache_dir) / f"detector_{key}.pt"
+    saved there (:func:`hrc_lab.cache.cached`: parallel jobs wait for the first). ``info``: train_seconds (of the
+    original training), cached, path."""
     detector = ObjectDetector(cfg)
-    if path.exists():
-        seconds = _load_cached(path, detector)
-        return detector.eval(), {"train_seconds": seconds, "cached": True, "path": str(path)}
-    start = time.perf_counter()
-    detector.fit(scenes, trainer_factory())
-    seconds = time.perf_counter() - start
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".{os.getpid()}.tmp")
-    # tensors and plain values only (asdict of the config: lists, numbers, strings), so it loads weights-only
-    torch.save({"state_dict": detector.model.state_dict(), "config": asdict(cfg), "train_seconds": seconds,
-                "n_scenes": len(scenes)}, tmp)
-    os.replace(tmp, path)  # atomic: parallel jobs never read a half-written file
-    return detector, {"train_seconds": seconds, "cached": False, "path": str(path)}
+    trained: list[float] = []
+
+    def train(partial: Path) -> None:
+        start = time.perf_counter()
+        detector.fit(scenes, trainer_factory())
+        trained.append(time.perf_counter() - start)
+        # tensors and plain values only (asdict of the config: lists, numbers, strings), so it loads weights-only
+        torch.save({"state_dict": detector.model.state_dict(), "config": asdict(cfg), "train_seconds": trained[0],
+                    "n_scenes": len(scenes)}, partial)
+
+    path = cached(Path(cache_dir) / f"detector_{key}.pt", train)
+    if trained:
+        return detector, {"train_seconds": trained[0], "cached": False, "path": str(path)}
+    seconds = _load_cached(path, detector)
+    return detector.eval(), {"train_seconds": seconds, "cached": True, "path": str(path)}
 
 
 def _load_cached(path: Path, detector: ObjectDetector) -> float:

@@ -7,8 +7,6 @@ so the set is the same on every machine. Tracking runs in ``workers`` processes 
 
 from __future__ import annotations
 
-import hashlib
-import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -16,6 +14,7 @@ import numpy as np
 from joblib import Parallel, delayed
 from tqdm import tqdm
 
+from hrc_lab.cache import cache_key
 from hrc_lab.data.files import read_npz
 from hrc_lab.env.assemble_to_order import AssembleToOrderSpec, action_labels
 from hrc_lab.env.assembly_video import GENERATOR_VERSION, AssemblyVideoSpec, render_action_clip
@@ -111,4 +110,4 @@ def action_set_key(ato: AssembleToOrderSpec, video: AssemblyVideoSpec, clips_per
     spec = {"ato": asdict(ato), "video": asdict(video), "clips": clips_per_class, "seed": data_seed,
             "sizes": asdict(sizes), "generator": GENERATOR_VERSION}
     spec["ato"].pop("n_goals", None)  # clips do not depend on which goals are in play
-    return hashlib.sha1(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:12]
+    return cache_key(spec)
