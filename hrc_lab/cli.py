@@ -23,7 +23,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig
 
-from hrc_lab.config import ConfigError, ValidatedConfig, validate_config
+from hrc_lab.config import LOGGERS, ConfigError, ValidatedConfig, validate_config
 from hrc_lab.interrupts import RunInterrupted, signals_raise
 
 CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
@@ -135,11 +135,10 @@ def _run(cfg: DictConfig) -> dict[str, float]:
 
     from hrc_lab.experiments import PROTOCOLS
     from hrc_lab.experiments.context import RunContext
-    from hrc_lab.tracking import RunTracker
 
     torch.set_num_threads(cfg.num_threads)
     pl.seed_everything(cfg.seed, workers=True, verbose=False)
-    protocol = PROTOCOLS.load(cfg.protocol.name)
+    protocol = PROTOCOLS.load(validated.protocol.name)
     scenario = getattr(validated.env, "scenario", validated.env.cell)
     tags = {
         "chapter": str(cfg.chapter),
@@ -153,7 +152,9 @@ def _run(cfg: DictConfig) -> dict[str, float]:
     }
     output_dir = Path(HydraConfig.get().runtime.output_dir)
     name = run_name(cfg, scenario, tags["variant"])
-    with RunTracker(validated.logger, cfg.name, name, tags, parent_run_id=validated.resume_from) as tracker:
+    tracker = LOGGERS.build(validated.logger, experiment=cfg.name, run_name=name, tags=tags,
+                            parent_run_id=validated.resume_from)
+    with tracker:
         tracker.log_config(cfg)
         tracker.log_artifact(output_dir / ".hydra", "hydra")
         tracker.log_text(str(output_dir.resolve()), "hydra/output_dir.txt")

@@ -38,8 +38,10 @@ TOP_LEVEL_KEYS = {
 
 @dataclass
 class LoggerConfig:
-    tracking_uri: str = "sqlite:///runs/mlflow.db"
-    artifact_root: str = "runs/mlartifacts"  # where new MLflow experiments keep artifacts (local stores)
+    """MLflow tracking (``conf/logger/mlflow.yaml`` holds the values: they follow ``paths.runs_dir``)."""
+
+    tracking_uri: str
+    artifact_root: str  # where new MLflow experiments keep artifacts (local stores)
 
     def __post_init__(self) -> None:
         if "://" not in self.tracking_uri and not self.tracking_uri.startswith("databricks"):
@@ -90,13 +92,36 @@ class TrainerConfig:
             raise ValueError(f"trainer.gradient_clip_val must be > 0 or null, got {self.gradient_clip_val}")
 
 
-# conf/trainer/*.yaml extend this schema (defaults: [schema]), so Hydra knows every key a user may override.
-ConfigStore.instance().store(group="trainer", name="schema", node=TrainerConfig)
+@dataclass
+class PathsConfig:
+    runs_dir: str  # everything a run writes (MLflow store, Hydra outputs, caches, data sets); conf/paths
+
+
+def group_registries() -> dict[str, Registry]:
+    """The registry of every config group that selects an implementation by ``name``."""
+    from hrc_lab.env import ENVS
+    from hrc_lab.grasp import GRASPS
+    from hrc_lab.motion import MOTIONS
+    from hrc_lab.perception import PERCEPTIONS
+    from hrc_lab.reasoning import REASONERS
+
+    return {"env": ENVS, "reasoning": REASONERS, "motion": MOTIONS, "perception": PERCEPTIONS, "grasp": GRASPS,
+            "logger": LOGGERS}
+
+
+def register_schemas() -> None:
+    """Give Hydra every group's schema before it composes a config, so each ``conf/<group>/*.yaml`` extends its
+    schema and names only what differs (``schema/<group>/<name>``; the trainer's as ``trainer/schema``). Called
+    when :mod:`hrc_lab.cli` is imported (also in a launcher's worker processes) and by the tests."""
+    ConfigStore.instance().store(group="trainer", name="schema", node=TrainerConfig)
+    for registry in group_registries().values():
+        registry.store_schemas()
 
 
 @dataclass
 class ValidatedConfig:
-    """The typed view of a run's config that protocols receive (``raw`` keeps the composed DictConfig)."""
+    """The typed view of a run's config that protocols receive: one validated config per group (each keeps its
+    ``name``; None for a group set to ``none``). ``raw`` keeps the composed DictConfig for logging."""
 
     raw: DictConfig
     env: Any
@@ -107,6 +132,7 @@ class ValidatedConfig:
     protocol: Any
     logger: LoggerConfig
     trainer: TrainerConfig
+    paths: PathsConfig
     resume_from: str | None = None
 
 
@@ -123,13 +149,9 @@ def _validate_trainer(node: DictConfig) -> TrainerConfig:
 
 def validate_config(cfg: DictConfig) -> ValidatedConfig:
     """Check every group of a composed config; raise :class:`ConfigError` naming the first bad key."""
-    from hrc_lab.env import ENVS
     from hrc_lab.experiments import PROTOCOLS
-    from hrc_lab.grasp import GRASPS
-    from hrc_lab.motion import MOTIONS
-    from hrc_lab.perception import PERCEPTIONS
-    from hrc_lab.reasoning import REASONERS
 
+    registries = group_registries()
     unknown = sorted(set(cfg.keys()) - TOP_LEVEL_KEYS - {"hydra"})
     if unknown:
         raise ConfigError(f"{unknown[0]}: unknown top-level key; expected one of {sorted(TOP_LEVEL_KEYS)}")
@@ -142,24 +164,30 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
     resume_from = cfg.get("resume_from")
     if resume_from is not None and not (isinstance(resume_from, str) and re.fullmatch(r"[0-9a-f]{32}", resume_from)):
         raise ConfigError(f"resume_from: must be the 32-character id of an MLflow run, got {resume_from!r}")
-    reasoning = cfg.get("reasoning")
-    motion = cfg.get("motion")
-    perception = cfg.get("perception")
-    grasp = cfg.get("grasp")
+    modules = {}
+    for group in ("reasoning", "motion", "perception", "grasp"):
+        node = cfg.get(group)
+        modules[group] = None if node is None or node.get("name") == "none" else registries[group].validate(node)
     validated = ValidatedConfig(
         raw=cfg,
-        env=ENVS.validate(cfg.env),
-        reasoning=None if reasoning is None or reasoning.get("name") == "none" else REASONERS.validate(reasoning),
-        motion=None if motion is None or motion.get("name") == "none" else MOTIONS.validate(motion),
-        perception=None if perception is None or perception.get("name") == "none" else PERCEPTIONS.validate(perception),
-        grasp=None if grasp is None or grasp.get("name") == "none" else GRASPS.validate(grasp),
+        env=registries["env"].validate(cfg.env),
+        **modules,
         protocol=PROTOCOLS.validate(cfg.protocol, "protocol"),
         logger=LOGGERS.validate(cfg.logger),
         trainer=trainer,
+        paths=_validate_paths(cfg.paths),
         resume_from=resume_from,
     )
     _check_across_groups(validated)
     return validated
+
+
+def _validate_paths(node: DictConfig) -> PathsConfig:
+    try:
+        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(PathsConfig),
+                                                   OmegaConf.to_container(node, resolve=True)))
+    except OmegaConfBaseException as err:
+        raise ConfigError(f"paths.{getattr(err, 'full_key', '?')}: {str(err).splitlines()[0]}") from None
 
 
 def _check_across_groups(validated: ValidatedConfig) -> None:
@@ -174,3 +202,6 @@ def _check_across_groups(validated: ValidatedConfig) -> None:
         raise
     except ValueError as err:
         raise ConfigError(str(err)) from None
+
+
+register_schemas()  # on import: Hydra composes nothing of hrc_lab's before this module is loaded

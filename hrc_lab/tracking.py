@@ -85,11 +85,11 @@ class RunTracker:
     SIGTERM/SIGINT (:class:`RunInterrupted`) KILLED with the signal in the ``signal`` tag. ``parent_run_id`` names
     the killed run this one resumes (tag ``resumed_from``); its checkpoints are read by :meth:`resume_checkpoint`."""
 
-    def __init__(self, logger: LoggerConfig, experiment: str, run_name: str, tags: dict[str, str],
+    def __init__(self, cfg: LoggerConfig, experiment: str, run_name: str, tags: dict[str, str],
                  parent_run_id: str | None = None) -> None:
-        self.tracking_uri = resolve_tracking_uri(logger.tracking_uri)
+        self.tracking_uri = resolve_tracking_uri(cfg.tracking_uri)
         self.client = MlflowClient(self.tracking_uri)
-        self.experiment_id = ensure_experiment(self.client, experiment, logger.artifact_root)
+        self.experiment_id = ensure_experiment(self.client, experiment, cfg.artifact_root)
         self.run_name = run_name
         self.tags = {**tags, **process_identity()}
         if parent_run_id:

@@ -1,12 +1,11 @@
 import numpy as np
 import pytest
 import torch
-from omegaconf import OmegaConf
 from torch_geometric.loader import DataLoader
 
 from hrc_lab.env.package_to_order import PackageToOrderSpec, goal_configurations, sample_episode, stage_observations
 from hrc_lab.experiments.ch4_reasoning import evaluate
-from hrc_lab.reasoning import build_reasoner
+from hrc_lab.reasoning import REASONERS
 from hrc_lab.reasoning.module import ReasoningModule
 
 SPEC = PackageToOrderSpec(n_objects=5, n_selected=4)
@@ -25,7 +24,7 @@ def observations(episodes):
 
 @pytest.mark.parametrize("method", TORCH_METHODS)
 def test_output_shapes(method):
-    reasoner = build_reasoner(OmegaConf.create({"name": method}), SPEC)
+    reasoner = REASONERS.build(REASONERS.validate({"name": method}), spec=SPEC)
     batch = next(iter(DataLoader([reasoner.encode(o) for o in observations(demos(3))], batch_size=24)))
     logits_o, logits_g = reasoner.network(batch, teacher_forcing=False)
     assert logits_o.shape == (24, SPEC.n_objects + 1)  # P_o: packaging area + m products
@@ -36,7 +35,7 @@ def test_output_shapes(method):
 @pytest.mark.parametrize("method", TORCH_METHODS)
 def test_joint_loss_falls_on_a_tiny_batch(method):
     torch.manual_seed(0)
-    reasoner = build_reasoner(OmegaConf.create({"name": method}), SPEC)
+    reasoner = REASONERS.build(REASONERS.validate({"name": method}), spec=SPEC)
     module = ReasoningModule(reasoner.network, lr=1e-2)
     module.log_dict = lambda *args, **kwargs: None  # no trainer attached
     batch = next(iter(DataLoader([reasoner.encode(o) for o in observations(demos(4))], batch_size=32)))
@@ -52,7 +51,7 @@ def test_joint_loss_falls_on_a_tiny_batch(method):
 
 
 def test_two_stage_classifier_reads_the_goal_selected_by_p_o():
-    reasoner = build_reasoner(OmegaConf.create({"name": "ours"}), SPEC)
+    reasoner = REASONERS.build(REASONERS.validate({"name": "ours"}), spec=SPEC)
     batch = next(iter(DataLoader([reasoner.encode(o) for o in observations(demos(1))], batch_size=8)))
     seen = {}
     classifier = reasoner.network.classifier
@@ -63,7 +62,7 @@ def test_two_stage_classifier_reads_the_goal_selected_by_p_o():
 
 
 def test_random_forest_learns_the_seen_configurations():
-    reasoner = build_reasoner(OmegaConf.create({"name": "rf", "n_estimators": 20}), SPEC, seed=0)
+    reasoner = REASONERS.build(REASONERS.validate({"name": "rf", "n_estimators": 20}), spec=SPEC, seed=0)
     train = demos(24, seed=0) * 3
     reasoner.fit(observations(train), None)
     assert evaluate(reasoner, demos(24, seed=1))["acc_o"] > 0.8
@@ -95,7 +94,7 @@ def test_a_trial_succeeds_only_if_all_2n_predictions_are_right():
 
 @pytest.mark.parametrize("method", TORCH_METHODS)
 def test_scored_labels_are_the_trained_labels(method):
-    reasoner = build_reasoner(OmegaConf.create({"name": method}), SPEC)
+    reasoner = REASONERS.build(REASONERS.validate({"name": method}), spec=SPEC)
     obs = observations(demos(2))
     encoded = np.array([[int(d.o_label), int(d.g_label)] for d in map(reasoner.encode, obs)])
     np.testing.assert_array_equal(reasoner.labels(obs), encoded)

@@ -1,10 +1,9 @@
 import pytest
 import torch
-from omegaconf import OmegaConf
 from torch_geometric.loader import DataLoader
 
 from hrc_lab.env.assemble_to_order import SCREW, AssembleToOrderSpec, Scenario, scenarios
-from hrc_lab.reasoning import build_reasoner
+from hrc_lab.reasoning import REASONERS
 from hrc_lab.reasoning.hrc_loop import SemanticPlannerLoop
 from hrc_lab.reasoning.semantic_planner import (
     Plan,
@@ -37,7 +36,7 @@ def test_vocabulary_round_trip():
 
 def test_planner_shapes_and_a_falling_loss():
     torch.manual_seed(0)
-    planner = build_reasoner(OmegaConf.create({"name": "semantic_planner"}), SPEC)
+    planner = REASONERS.build(REASONERS.validate({"name": "semantic_planner"}), spec=SPEC)
     graphs = [scenario_graph(SPEC, s, planner.vocab) for s in scenarios(SPEC)[:40]]
     batch = next(iter(DataLoader(graphs, batch_size=40)))
     gamma_o, logits_goal, logits_next, p_goal = planner.network.encode(batch)

@@ -12,10 +12,12 @@ from hrc_lab.env.settings import ErrorCorrectionConfig, PackageToOrderConfig, Si
 from hrc_lab.registry import Registry
 
 ENVS = Registry("env")
-ENVS.register("package_to_order", PackageToOrderConfig, "hrc_lab.env.sim.package_to_order:PackageToOrder")
-ENVS.register("error_correction", ErrorCorrectionConfig, "hrc_lab.env.sim.error_correction:ErrorCorrection")
-ENVS.register("assemble_to_order", AssembleToOrderSpec, "hrc_lab.env.assemble_to_order:AssembleToOrderSpec")
-ENVS.register("clutter", ClutterSpec, "hrc_lab.env.clutter:ClutterSpec")
+# ENVS.build(cfg, seed=...) makes the robosuite cell of a robot env; the Ch.5 assembly domain and the Ch.6 clutter
+# scenes are specifications that their protocols' generators read (nothing to build).
+ENVS.register("package_to_order", PackageToOrderConfig, "hrc_lab.env.sim.factory:make_env")
+ENVS.register("error_correction", ErrorCorrectionConfig, "hrc_lab.env.sim.factory:make_env")
+ENVS.register("assemble_to_order", AssembleToOrderSpec)
+ENVS.register("clutter", ClutterSpec)
 
 __all__ = [
     "ENVS",

@@ -7,7 +7,9 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
+from hrc_lab.env import ENVS
 from hrc_lab.experiments.context import RunContext
+from hrc_lab.motion import MOTIONS
 
 COLOURS = {1: "blue", 2: "red"}
 
@@ -32,12 +34,12 @@ def correction_demos(env, n: int, protocol, desc: str, placement_noise: float = 
 
 def train_two_level(ctx: RunContext, env, demos):
     """Task classifier c(x), sub-goal planner and neural dynamic planner from the demonstrations."""
-    from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier, build_subgoal_planner
+    from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier
     from hrc_lab.motion.two_level import classifier_pairs, correction_pairs, dynamics_pairs
 
     classifier = StageClassifier(4, seed=ctx.seed).fit(*classifier_pairs(demos), lambda: ctx.trainer("classifier"))
     pairs = correction_pairs(demos, tuple(ctx.cfg.protocol.stage_starts))
-    planner = build_subgoal_planner(ctx.cfg.motion, 4, ctx.cfg.protocol.subgoals_per_stage, seed=ctx.seed)
+    planner = MOTIONS.build(ctx.cfg.motion, n_labels=4, n_subgoals=ctx.cfg.protocol.subgoals_per_stage, seed=ctx.seed)
     planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"), pairs.indices)
     ndp = DynamicPlanner(ctx.cfg.motion.ndp, env.max_joint_step, env.base_position(), seed=ctx.seed)
     ndp.fit(*dynamics_pairs(demos), lambda: ctx.trainer("ndp"))
@@ -45,15 +47,14 @@ def train_two_level(ctx: RunContext, env, demos):
 
 
 def table_3_1(ctx: RunContext) -> dict[str, float]:
-    from hrc_lab.env.sim import make_env
     from hrc_lab.motion.two_level import run_correction
 
     config, protocol = ctx.cfg.env, ctx.cfg.protocol
-    env = make_env(config, seed=ctx.seed)
+    env = ENVS.build(config, seed=ctx.seed)
     demos = correction_demos(env, protocol.demos, protocol, f"demos {config.cell}", protocol.placement_noise,
                              ctx.rng(5))
     classifier, planner, ndp = train_two_level(ctx, env, demos)
-    test = make_env(config, seed=1000 + ctx.seed)
+    test = ENVS.build(config, seed=1000 + ctx.seed)
     rows = []
     for trial in tqdm(range(protocol.trials), desc=f"table 3.1 {config.cell}", unit="trial"):
         out, final = run_correction(test, planner, ndp, classifier, protocol.subgoals_per_stage,
@@ -87,8 +88,6 @@ def fig_3_10(ctx: RunContext) -> dict[str, float]:
     error-correction demonstrations."""
     import dataclasses
 
-    from hrc_lab.env.settings import ErrorCorrectionConfig
-    from hrc_lab.env.sim import make_env
     from hrc_lab.motion.subgoal import DynamicPlanner
     from hrc_lab.motion.two_level import dynamics_pairs
 
@@ -96,10 +95,10 @@ def fig_3_10(ctx: RunContext) -> dict[str, float]:
     demos = []
     for task in ("one_object", "two_object"):
         for case in (1, 2):
-            config = ErrorCorrectionConfig(task=task, sim=dataclasses.replace(ctx.cfg.env.sim, case=case))
-            demos += correction_demos(make_env(config, seed=ctx.seed), protocol.demos_per_case, protocol,
+            config = ENVS.derive(ctx.cfg.env, task=task, sim=dataclasses.replace(ctx.cfg.env.sim, case=case))
+            demos += correction_demos(ENVS.build(config, seed=ctx.seed), protocol.demos_per_case, protocol,
                                       f"demos {config.cell}")
-    env = make_env(ErrorCorrectionConfig(task="place", sim=ctx.cfg.env.sim), seed=ctx.seed)
+    env = ENVS.build(ENVS.derive(ctx.cfg.env, task="place"), seed=ctx.seed)
     r, s, a = dynamics_pairs(demos)
     controllers = {
         "ndp": DynamicPlanner(ndp_config, env.max_joint_step, env.base_position(), seed=ctx.seed),

@@ -11,8 +11,10 @@ from sklearn.metrics import r2_score
 from sklearn.model_selection import GroupKFold
 from tqdm import tqdm
 
+from hrc_lab.env import ENVS
 from hrc_lab.env.package_to_order import combinations
 from hrc_lab.experiments.context import RunContext
+from hrc_lab.motion import MOTIONS
 
 
 def fixed_goal_configurations(spec) -> list:
@@ -32,12 +34,12 @@ def collect_demos(env, n: int, desc: str) -> list:
 
 def cross_validated_r2(ctx: RunContext, pairs, folds: int) -> float:
     """R^2 of the sub-goal regressor on held-out demonstrations (GroupKFold over demos, uniform over x, y, z)."""
-    from hrc_lab.motion.subgoal import build_subgoal_planner
     from hrc_lab.motion.two_level import DESIGNED_SUBGOALS
 
     scores = []
     for k, (train, test) in enumerate(GroupKFold(folds).split(pairs.x, groups=pairs.groups)):
-        planner = build_subgoal_planner(ctx.cfg.motion, 1 + ctx.cfg.env.slots, DESIGNED_SUBGOALS, seed=ctx.seed)
+        planner = MOTIONS.build(ctx.cfg.motion, n_labels=1 + ctx.cfg.env.slots, n_subgoals=DESIGNED_SUBGOALS,
+                                seed=ctx.seed)
         planner.fit(pairs.x[train], pairs.labels[train], pairs.subgoals[train], lambda k=k: ctx.trainer(f"cv{k}"),
                     pairs.indices[train])
         mean, _ = planner.predict(pairs.x[test], pairs.labels[test], pairs.indices[test])
@@ -46,27 +48,26 @@ def cross_validated_r2(ctx: RunContext, pairs, folds: int) -> float:
 
 
 def table_4_2(ctx: RunContext) -> dict[str, float]:
-    from hrc_lab.env.sim import make_env
-    from hrc_lab.motion.subgoal import DynamicPlanner, build_subgoal_planner
+    from hrc_lab.motion.subgoal import DynamicPlanner
     from hrc_lab.motion.two_level import DESIGNED_SUBGOALS, dynamics_pairs, package_pairs, run_package
 
     spec, protocol, motion = ctx.cfg.env, ctx.cfg.protocol, ctx.cfg.motion
-    train_env = make_env(spec, seed=ctx.seed)
+    train_env = ENVS.build(spec, seed=ctx.seed)
     train_env.configurations = fixed_goal_configurations(spec)
     demos = collect_demos(train_env, protocol.demos, f"demos {spec.cell}")
     pairs = package_pairs(demos)
     r2 = cross_validated_r2(ctx, pairs, protocol.cv_folds)
 
-    planner = build_subgoal_planner(motion, 1 + spec.slots, DESIGNED_SUBGOALS, seed=ctx.seed)
+    planner = MOTIONS.build(motion, n_labels=1 + spec.slots, n_subgoals=DESIGNED_SUBGOALS, seed=ctx.seed)
     planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"), pairs.indices)
     ndp = DynamicPlanner(motion.ndp, train_env.max_joint_step, train_env.base_position(), seed=ctx.seed)
     ndp.fit(*dynamics_pairs(demos), lambda: ctx.trainer("ndp"))
 
     # tests: every goal configuration (permutations unseen in training), CASE 1 and CASE 2 alternating
-    test_envs = [make_env(dataclasses.replace(spec, sim=dataclasses.replace(spec.sim, case=c)), seed=1000 + ctx.seed)
+    test_envs = [ENVS.build(ENVS.derive(spec, sim=dataclasses.replace(spec.sim, case=c)), seed=1000 + ctx.seed)
                  for c in (1, 2)]
     rows = []
-    for trial in tqdm(range(protocol.trials), desc=f"table 4.2 {spec.cell} {ctx.cfg.raw.motion.name}", unit="trial"):
+    for trial in tqdm(range(protocol.trials), desc=f"table 4.2 {spec.cell} {motion.name}", unit="trial"):
         env = test_envs[trial % 2]
         out = run_package(env, planner, ndp, max_steps=protocol.max_steps_per_subgoal, tolerance=protocol.tolerance)
         rows.append({"trial": trial, "case": 1 + trial % 2, "success": out.success, "failure": out.failure,
@@ -90,6 +91,6 @@ def table_4_2(ctx: RunContext) -> dict[str, float]:
     }
     for failure in ("pick", "placement", "collision", "horizon"):
         metrics[f"fail_{failure}"] = float((trials.failure == failure).mean())
-    table = pd.DataFrame([{"method": ctx.cfg.raw.motion.name, "seed": ctx.seed, "cell": spec.cell, **metrics}])
+    table = pd.DataFrame([{"method": motion.name, "seed": ctx.seed, "cell": spec.cell, **metrics}])
     ctx.tracker.log_table(table, "table_4_2")
     return metrics

@@ -25,7 +25,7 @@ from hrc_lab.env.package_to_order import (
     stage_observations,
 )
 from hrc_lab.experiments.context import RunContext
-from hrc_lab.reasoning import REASONERS, build_reasoner
+from hrc_lab.reasoning import REASONERS
 from hrc_lab.reasoning.base import Reasoner
 
 # Data and scoring ------------------------------------------------------------------------------------------------
@@ -83,7 +83,7 @@ def measure_latency(reasoner: Reasoner, observations: list, n_single: int = 100)
 
 
 def train(ctx: RunContext, spec: PackageToOrderSpec, episodes: list[Episode], prefix: str) -> tuple[Reasoner, float]:
-    reasoner = build_reasoner(ctx.cfg.raw.reasoning, spec, seed=ctx.seed)
+    reasoner = REASONERS.build(ctx.cfg.reasoning, spec=spec, seed=ctx.seed)
     start = time.perf_counter()
     reasoner.fit(observations_of(episodes), ctx.trainer(prefix))
     return reasoner, time.perf_counter() - start
@@ -95,7 +95,7 @@ def demo_repeats(spec: PackageToOrderSpec, min_demos: int) -> int:
 
 
 def result_row(ctx: RunContext, **values) -> dict:
-    return {"method": ctx.cfg.raw.reasoning.name, "seed": ctx.seed, **values}
+    return {"method": ctx.cfg.reasoning.name, "seed": ctx.seed, **values}
 
 
 # Table 4.1 -------------------------------------------------------------------------------------------------------
@@ -161,7 +161,7 @@ def practical(ctx: RunContext) -> dict[str, float]:
     rng = ctx.rng(20)
     draw_missing = lambda: int(rng.integers(1, protocol.max_missing + 1))  # noqa: E731
 
-    if REASONERS.load(ctx.cfg.raw.reasoning.name).handles_missing_products:
+    if REASONERS.load(ctx.cfg.reasoning.name).handles_missing_products:
         full = episodes_for(spec, goal_configurations(spec), rng, demo_repeats(spec, protocol.min_demos))
         partial = random_episodes(spec, protocol.partial_demos, rng, n_missing=draw_missing)
         tests = random_episodes(spec, protocol.missing_tests, rng, n_missing=draw_missing)
@@ -198,7 +198,7 @@ def practical(ctx: RunContext) -> dict[str, float]:
 def fig_4_9(ctx: RunContext) -> dict[str, float]:
     from hrc_lab.reasoning.explain import explain_stage, plot_explanations
 
-    if ctx.cfg.raw.reasoning.name != "ours":
+    if ctx.cfg.reasoning.name != "ours":
         raise ValueError("protocol ch4_fig_4_9 explains the chain GraphSAGE encoder: run it with reasoning=ours")
     spec, protocol = ctx.cfg.env, ctx.cfg.protocol
     rng = ctx.rng(30)

@@ -37,6 +37,7 @@ from hrc_lab.env.assemble_to_order import (
 from hrc_lab.env.assembly_video import Clip, SessionStep, render_action_clip, render_session
 from hrc_lab.experiments.ch5_planner import train_planner
 from hrc_lab.experiments.context import RunContext
+from hrc_lab.perception import PERCEPTIONS
 from hrc_lab.perception.action_detector import ActionDetector, ActionWindows
 from hrc_lab.perception.configs import ActionDetectorConfig
 from hrc_lab.perception.dataset import ActionSet, WindowSizes, action_set_key, build_action_set
@@ -50,7 +51,7 @@ STORED_SIDE, STORED_STRIDE = 64, 3  # crops and frames kept in the cache
 
 
 def cache_dir(ctx: RunContext) -> Path:
-    return Path(ctx.cfg.raw.paths.runs_dir) / "cache" / "ch5"
+    return Path(ctx.cfg.paths.runs_dir) / "cache" / "ch5"
 
 
 def window_sizes(ctx: RunContext) -> WindowSizes:
@@ -107,7 +108,7 @@ def stratified_split(labels: np.ndarray, fraction: float, rng: np.random.Generat
 
 def train_detector(ctx: RunContext, data: ActionSet, seed: int, prefix: str) -> ActionDetector:
     cfg = ctx.cfg.perception
-    detector = ActionDetector(cfg, len(data.names), seed=seed)
+    detector = PERCEPTIONS.build(cfg, n_classes=len(data.names), seed=seed)
     return detector.fit(windows(cfg, data, train=True), ctx.trainer(prefix, max_epochs=cfg.epochs))
 
 
@@ -124,7 +125,7 @@ def shared_detector(ctx: RunContext, data: ActionSet) -> ActionDetector:
         torch.save(detector.state_dict(), path)
 
     path = cached(cache_dir(ctx) / f"detector_{key}.pt", build)
-    detector = ActionDetector(cfg, len(data.names), seed=protocol.data_seed)
+    detector = PERCEPTIONS.build(cfg, n_classes=len(data.names), seed=protocol.data_seed)
     load_weights(path, detector, load_torch(path))
     return detector.eval()
 
@@ -176,7 +177,7 @@ def fig_5_6(ctx: RunContext) -> dict[str, float]:
     correct = predicted == data.labels
     confusion = np.zeros((len(data.names),) * 2, dtype=int)
     np.add.at(confusion, (data.labels, predicted), 1)
-    method = ctx.cfg.raw.perception.name
+    method = ctx.cfg.perception.name
     ctx.tracker.log_figure(confusion_figure(confusion, data.names, f"{method}, seed {ctx.seed}: all clips"),
                            "figures/confusion.png")
     ctx.tracker.log_table(pd.DataFrame(confusion, index=data.names, columns=data.names).reset_index(),

@@ -21,13 +21,13 @@ from hrc_lab.env.assemble_to_order import (
     scenarios,
 )
 from hrc_lab.experiments.context import RunContext
-from hrc_lab.reasoning import build_reasoner
+from hrc_lab.reasoning import REASONERS
 from hrc_lab.reasoning.hrc_loop import SemanticPlannerLoop
 from hrc_lab.reasoning.semantic_planner import SemanticPlanner, score_plans
 
 
 def train_planner(ctx: RunContext, spec: AssembleToOrderSpec, train: list[Scenario], prefix: str) -> SemanticPlanner:
-    planner = build_reasoner(ctx.cfg.raw.reasoning, spec, seed=ctx.seed)
+    planner = REASONERS.build(ctx.cfg.reasoning, spec=spec, seed=ctx.seed)
     if not isinstance(planner, SemanticPlanner):
         raise ValueError("the Ch.5 planner protocols need reasoning=semantic_planner")
     planner.fit(train, ctx.trainer(prefix))

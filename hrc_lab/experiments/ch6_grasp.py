@@ -33,7 +33,7 @@ def scene_set(ctx: RunContext, spec: ClutterSpec, stream: int, count: int) -> li
 
     seeds = [ctx.cfg.protocol.data_seed * 1_000_000 + stream * 100_000 + i for i in range(count)]
     key = cache_key([asdict(spec), seeds[0], count])
-    path = Path(ctx.cfg.raw.paths.runs_dir) / "cache" / "ch6" / f"scenes_{key}.npz"
+    path = Path(ctx.cfg.paths.runs_dir) / "cache" / "ch6" / f"scenes_{key}.npz"
     return load_scenes(cached(path, lambda p: save_scenes(p, generate_scenes(spec, seeds, progress=True))))
 
 
@@ -41,7 +41,7 @@ def detector_for(ctx: RunContext, train_scenes: list[ClutterScene]):
     """The detector trained on the training scenes, from the cache when another job already trained it."""
     cfg = ctx.cfg.grasp.detector
     key = detector_cache_key(cfg, [s.seed for s in train_scenes])
-    cache_dir = Path(ctx.cfg.raw.paths.runs_dir) / "cache" / "ch6"
+    cache_dir = Path(ctx.cfg.paths.runs_dir) / "cache" / "ch6"
     return load_or_train_detector(cfg, train_scenes, lambda: ctx.trainer("detector/"), cache_dir, key)
 
 
@@ -106,7 +106,7 @@ def prepare(ctx: RunContext):
     start = time.perf_counter()
     detector, info = detector_for(ctx, train)
     ctx.tracker.log_metrics({f"detector_{k}": float(v) for k, v in info.items() if isinstance(v, int | float)})
-    solver = GRASPS.load(ctx.cfg.raw.grasp.name)(spec, cfg, seed=ctx.seed)
+    solver = GRASPS.build(cfg, spec=spec, seed=ctx.seed)
     train_nodes = scene_nodes(spec, train, detector, cfg.detector, solver.needs_union_features)
     rng = ctx.rng(61)
     requests = [random_request(rng, n.labels or n.scene.types) for n in train_nodes]
@@ -126,7 +126,7 @@ def table_6_1(ctx: RunContext) -> dict[str, float]:
     for k in protocol.request_sizes:
         result = object_accuracy(solver, test, [random_request(rng, n.scene.types, k) for n in test])
         metrics |= {f"oa_{k}": result["oa"], f"grasp_acc_{k}": result["grasp_acc"]}
-        rows.append({"method": ctx.cfg.raw.grasp.name, "seed": ctx.seed, "request_types": k, **result})
+        rows.append({"method": ctx.cfg.grasp.name, "seed": ctx.seed, "request_types": k, **result})
     ctx.tracker.log_table(pd.DataFrame(rows), "table_6_1")
     return metrics
 

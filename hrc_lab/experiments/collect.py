@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
+from hrc_lab.env import ENVS
 from hrc_lab.experiments.context import RunContext
 
 
@@ -23,7 +24,7 @@ def _env_args(ctx: RunContext, env) -> dict:
         "env_name": type(env).__name__,
         "type": 1,  # robomimic's EnvType.ROBOSUITE_TYPE
         "env_kwargs": {"control_freq": env.control_freq, "horizon": env.horizon},
-        "hrc_lab_env": {"name": ctx.cfg.raw.env.name, **json.loads(json.dumps(dataclasses.asdict(config)))},
+        "hrc_lab_env": {"name": config.name, **json.loads(json.dumps(dataclasses.asdict(config)))},
         "stage_label_offset": 1 if type(env).__name__ == "ErrorCorrection" else 0,
         "seed": ctx.seed,
     }
@@ -97,16 +98,15 @@ def segment(demo, label_of, protocol) -> float:
 def collect(ctx: RunContext) -> dict[str, float]:
     """Expert demonstrations of one scenario into ``<paths.runs_dir>/data/<scenario>.hdf5`` (or protocol.output)."""
     from hrc_lab.data.demos import DemoWriter
-    from hrc_lab.env.sim import make_env
     from hrc_lab.env.sim.expert import ScriptedExpert
 
     protocol = ctx.cfg.protocol
     scenario = getattr(ctx.cfg.env, "scenario", ctx.cfg.env.cell)
-    env = make_env(ctx.cfg.env, seed=ctx.seed)
+    env = ENVS.build(ctx.cfg.env, seed=ctx.seed)
     expert = ScriptedExpert(env, max_steps_per_subgoal=protocol.max_steps_per_subgoal)
     speed = env_speed(env)
     env.reseed(ctx.seed)  # the demonstrations do not depend on the speed probe
-    path = Path(protocol.output or Path(ctx.cfg.raw.paths.runs_dir) / "data" / f"{scenario}_seed{ctx.seed}.hdf5")
+    path = Path(protocol.output or Path(ctx.cfg.paths.runs_dir) / "data" / f"{scenario}_seed{ctx.seed}.hdf5")
     rows = []
     start = time.perf_counter()
     with DemoWriter(path, _env_args(ctx, env)) as writer:
@@ -140,12 +140,11 @@ def render_demo(ctx: RunContext) -> dict[str, float]:
     import cv2
     from hydra.core.hydra_config import HydraConfig
 
-    from hrc_lab.env.sim import make_env
     from hrc_lab.env.sim.expert import ScriptedExpert
 
     protocol = ctx.cfg.protocol
     scenario = getattr(ctx.cfg.env, "scenario", ctx.cfg.env.cell)
-    env = make_env(ctx.cfg.env, seed=ctx.seed, has_offscreen_renderer=True, camera_names=protocol.camera,
+    env = ENVS.build(ctx.cfg.env, seed=ctx.seed, has_offscreen_renderer=True, camera_names=protocol.camera,
                    camera_heights=protocol.height, camera_widths=protocol.width)
     expert = ScriptedExpert(env)
     env.reset()

@@ -180,8 +180,9 @@ class DynamicPlanner:
         return np.clip(out.numpy(), -1.0, 1.0) * self.max_step
 
 
-def build_subgoal_planner(config: SubgoalConfig, n_labels: int, n_subgoals: int = 1, seed: int = 0) -> SubgoalPlanner:
-    return SubgoalPlanner(config, n_labels, n_subgoals, seed)
+def build_subgoal_planner(cfg: SubgoalConfig, n_labels: int, n_subgoals: int = 1, seed: int = 0) -> SubgoalPlanner:
+    """The sub-goal planner of a ``motion`` config (``MOTIONS.build(cfg, n_labels=..., n_subgoals=..., seed=...)``)."""
+    return SubgoalPlanner(cfg, n_labels, n_subgoals, seed)
 
 
 class StageClassifier:

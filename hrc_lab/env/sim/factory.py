@@ -25,13 +25,14 @@ def cell_kwargs(sim: SimSettings) -> dict:
     }
 
 
-def make_env(config: PackageToOrderConfig | ErrorCorrectionConfig, seed: int | None = None, **render) -> HRCCell:
-    """The cell an ``env`` config describes; ``render`` takes robosuite's off-screen camera arguments."""
-    kwargs = {**cell_kwargs(config.sim), "seed": seed, **render}
-    if isinstance(config, PackageToOrderConfig):
+def make_env(cfg: PackageToOrderConfig | ErrorCorrectionConfig, seed: int | None = None, **render) -> HRCCell:
+    """The cell an ``env`` config describes (``ENVS.build(cfg, seed=...)``); ``render`` takes robosuite's
+    off-screen camera arguments."""
+    kwargs = {**cell_kwargs(cfg.sim), "seed": seed, **render}
+    if isinstance(cfg, PackageToOrderConfig):
         fields = {f.name for f in dataclasses.fields(PackageToOrderSpec)}
-        spec = PackageToOrderSpec(**{k: getattr(config, k) for k in fields})
-        return PackageToOrder(spec, case=config.sim.case, n_missing=config.sim.n_missing, **kwargs)
-    if isinstance(config, ErrorCorrectionConfig):
-        return ErrorCorrection(task=config.task, case=config.sim.case, **kwargs)
-    raise TypeError(f"env '{type(config).__name__}' has no robot cell; use package_to_order or error_correction")
+        spec = PackageToOrderSpec(**{k: getattr(cfg, k) for k in fields})
+        return PackageToOrder(spec, case=cfg.sim.case, n_missing=cfg.sim.n_missing, **kwargs)
+    if isinstance(cfg, ErrorCorrectionConfig):
+        return ErrorCorrection(task=cfg.task, case=cfg.sim.case, **kwargs)
+    raise TypeError(f"env '{type(cfg).__name__}' has no robot cell; use package_to_order or error_correction")
