@@ -1,9 +1,9 @@
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
+from hydra.errors import ConfigCompositionException
 
 from hrc_lab.config import validate_config
 from hrc_lab.registry import ConfigError
@@ -42,7 +42,9 @@ def test_every_experiment_config_composes_and_validates(compose_config, experime
     ],
 )
 def test_bad_values_fail_naming_the_key(compose_config, override, key):
-    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+    """A wrong type fails when Hydra composes (every group's schema is in its ConfigStore), an unknown key or an
+    impossible value in validate_config; both name the key."""
+    with pytest.raises((ConfigError, ConfigCompositionException), match=key.replace(".", r"\.")):
         validate_config(compose_config("experiment=ch4/table_4_1", *override.split()))
 
 
@@ -51,19 +53,47 @@ def test_missing_experiment_is_explained(compose_config):
         validate_config(compose_config())
 
 
-def test_cli_rejects_a_bad_value_within_two_seconds(cli_env):
-    start = time.perf_counter()
+def test_cli_exits_2_naming_the_bad_key(cli_env, console_script):
     result = subprocess.run(
-        [sys.executable, "-m", "hrc_lab.cli", "experiment=ch4/table_4_1", "env.n_selected=9", "hydra.mode=RUN"],
+        [console_script("hrc-lab"), "experiment=ch4/table_4_1", "env.n_selected=9", "hydra.mode=RUN"],
         capture_output=True,
         text=True,
         env=cli_env,
         timeout=60,
     )
-    elapsed = time.perf_counter() - start
-    assert result.returncode != 0
-    assert "env.n_selected" in result.stderr
-    assert elapsed < 2.0, f"validation took {elapsed:.2f} s"
+    assert result.returncode == 2, result.stderr[-3000:]
+    assert "config error" in result.stderr and "env.n_selected" in result.stderr
+
+
+HEAVY = ("torch", "lightning", "mlflow", "robosuite", "mujoco", "sklearn", "torch_geometric", "mediapipe")
+
+VALIDATE_IN_A_FRESH_INTERPRETER = f"""
+import sys
+from hydra import compose, initialize_config_dir
+from hrc_lab.cli import CONF_DIR, run
+from hrc_lab.config import validate_config
+from hrc_lab.registry import ConfigError
+
+with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+    for experiment in {EXPERIMENTS!r}:
+        validate_config(compose("config", overrides=["experiment=" + experiment]))
+    try:
+        run(compose("config", overrides=["experiment=ch4/table_4_1", "env.n_selected=9"]))
+    except ConfigError:
+        pass
+    else:
+        sys.exit("run() accepted env.n_selected=9")
+print(" ".join(sorted(name for name in {HEAVY!r} if name in sys.modules)) or "none")
+"""
+
+
+def test_validation_imports_nothing_heavy(cli_env):
+    """A bad key fails fast because validating (every experiment, and run() up to its ConfigError) imports none of
+    torch, lightning, MLflow, the simulators: checked in a fresh interpreter, not with a clock."""
+    script = [sys.executable, "-c", VALIDATE_IN_A_FRESH_INTERPRETER]
+    result = subprocess.run(script, capture_output=True, text=True, env=cli_env, timeout=120)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert result.stdout.split() == ["none"], f"validation imported {result.stdout.strip()}"
 
 
 def test_ch5_configs_reject_a_wrong_goal_count(compose_config):

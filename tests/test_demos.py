@@ -1,11 +1,8 @@
 """Demonstration datasets: HDF5 round trip, stage segmentation on known trajectories, the collect job end to end."""
 
-import subprocess
-
 import h5py
 import numpy as np
 import pytest
-from mlflow.tracking import MlflowClient
 
 from hrc_lab.data.demos import DemoWriter, read_demos
 from hrc_lab.data.segmentation import PICK, PLACE, agreement, detect_stages, resample, stage_labels, stage_subgoals
@@ -85,19 +82,13 @@ def test_designed_subgoals_are_the_experts(demo):
     assert np.allclose(subgoals[0, 0], first[0])
 
 
-def test_collect_job_writes_demos_and_metrics(tmp_path, cli_env, console_script):
-    result = subprocess.run(
-        [console_script("hrc-lab"), "experiment=data/collect", "env=error_correction_one_object_case2",
-         "protocol.episodes=2", "protocol.subgoals_per_stage=5", "protocol.subgoal_mode=resample"],
-        capture_output=True, text=True, env=cli_env, timeout=300,
-    )
-    assert result.returncode == 0, result.stderr[-3000:]
-    runs = tmp_path / "runs"
-    demos, _ = read_demos(runs / "data" / "one_object_case2_seed0.hdf5")
+def test_collect_job_writes_demos_and_metrics(run_job, base_run_name):
+    job = run_job("experiment=data/collect", "env=error_correction_one_object_case2", "protocol.episodes=2",
+                  "protocol.subgoals_per_stage=5", "protocol.subgoal_mode=resample")
+    demos, _ = read_demos(job.runs_dir / "data" / "one_object_case2_seed0.hdf5")
     assert len(demos) == 2 and demos[0].stage_subgoals.shape[1:] == (5, 3)
-    client = MlflowClient(f"sqlite:///{runs / 'mlflow.db'}")
-    run = client.search_runs([client.get_experiment_by_name("data/collect").experiment_id])[0]
-    assert run.info.run_name == "data/collect-none-one_object_case2-seed0"
+    run = job.run
+    assert base_run_name(run) == "data/collect-none-one_object_case2-seed0" and run.info.status == "FINISHED"
     assert run.data.metrics["expert_success_rate"] == 1.0
     assert 0.8 <= run.data.metrics["segmentation_agreement"] <= 1.0
     assert run.data.metrics["env_steps_per_s"] > 0

@@ -4,7 +4,6 @@ planner, the jitter of r, and two-level rollouts of a few steps in the robot cel
 from __future__ import annotations
 
 import math
-import subprocess
 
 import lightning.pytorch as pl
 import numpy as np
@@ -147,12 +146,11 @@ def test_correction_rollout_of_a_few_steps():
     ("ch4/table_4_2", ["env=package_to_order_2of3", "protocol.demos=3", "protocol.trials=2"]),
     ("ch3/table_3_1", ["protocol.demos=2", "protocol.trials=1", "protocol.max_steps_per_subgoal=3"]),
 ])
-def test_motion_experiment_end_to_end(experiment, overrides, cli_env, console_script):
+def test_motion_experiment_end_to_end(experiment, overrides, run_job):
     tiny = ["hydra.mode=RUN", "trainer.max_epochs=1", "motion.steps=10", "motion.ndp.steps=10"]
-    result = subprocess.run([console_script("hrc-lab"), f"experiment={experiment}", *tiny, *overrides],
-                            capture_output=True, text=True, env=cli_env, timeout=300)
-    assert result.returncode == 0, result.stderr[-3000:]
-    assert "planning_ms=" in result.stderr + result.stdout
+    job = run_job(f"experiment={experiment}", *tiny, *overrides)
+    assert "planning_ms=" in job.log
+    assert job.run.data.metrics["planning_ms"] == pytest.approx(job.metrics["planning_ms"], nan_ok=True)
 
 
 def test_label_per_subgoal_separates_sub_goals_that_share_an_observation():

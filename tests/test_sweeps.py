@@ -1,5 +1,8 @@
-"""Sweeps through Hydra launchers (slow: several processes, each importing torch)."""
+"""A real sweep through the console script and a Hydra launcher: a tiny Table 4.1 sweep (2 methods x 2 seeds) with
+hydra/launcher=joblib into a temporary MLflow store, the summary callback's table, then the report built from it.
+The one subprocess run of the default suite besides the config-error exit code check in test_config.py."""
 
+import os
 import subprocess
 
 import pytest
@@ -8,40 +11,69 @@ from mlflow.tracking import MlflowClient
 TINY = ["trainer.max_epochs=1", "reasoning.steps_per_epoch=5", "protocol.min_demos=10"]
 
 
-@pytest.mark.slow
-def test_joblib_launcher_runs_jobs_in_parallel_into_one_experiment(tmp_path, cli_env, console_script):
+@pytest.fixture(scope="module")
+def joblib_sweep(tmp_path_factory, console_script):
+    runs = tmp_path_factory.mktemp("sweep") / "runs"
+    env = dict(os.environ, HRC_LAB_RUNS=str(runs), PYTHONWARNINGS="ignore")
     command = [
         console_script("hrc-lab"),
         "-m",
         "experiment=ch4/table_4_1",
         "hydra/launcher=joblib",
         "hydra.launcher.n_jobs=2",
-        "env=package_to_order_2of3,package_to_order_3of3",
-        "reasoning=ours,mlp",
-        "seed=0",
-        *TINY,
-    ]
-    result = subprocess.run(command, capture_output=True, text=True, env=cli_env, timeout=600)
-    assert result.returncode == 0, result.stderr[-3000:]
-    client = MlflowClient(f"sqlite:///{tmp_path / 'runs' / 'mlflow.db'}")
-    experiment = client.get_experiment_by_name("ch4/table_4_1")
-    runs = [r for r in client.search_runs([experiment.experiment_id]) if r.data.tags.get("kind") != "summary"]
-    assert len(runs) == 4 and all(r.info.status == "FINISHED" for r in runs)
-    assert len({r.data.tags["sweep"] for r in runs}) == 1
-
-
-@pytest.mark.slow
-def test_single_run_mode(tmp_path, cli_env, console_script):
-    command = [
-        console_script("hrc-lab"),
-        "experiment=ch4/table_4_1",
-        "hydra.mode=RUN",
         "env=package_to_order_2of3",
-        "seed=3",
+        "reasoning=ours,mlp",
+        "seed=0,1",
         *TINY,
     ]
-    result = subprocess.run(command, capture_output=True, text=True, env=cli_env, timeout=300)
+    result = subprocess.run(command, capture_output=True, text=True, env=env, timeout=250)  # < pytest-timeout
     assert result.returncode == 0, result.stderr[-3000:]
-    client = MlflowClient(f"sqlite:///{tmp_path / 'runs' / 'mlflow.db'}")
-    (run,) = client.search_runs([client.get_experiment_by_name("ch4/table_4_1").experiment_id])
-    assert run.info.run_name == "ch4/table_4_1-ours-2of3-seed3" and run.data.tags["sweep"] == "none"
+    return f"sqlite:///{runs / 'mlflow.db'}", result.stdout
+
+
+def sweep_jobs(tracking_uri):
+    """The MLflow runs of the sweep's jobs (not the summary callback's run)."""
+    client = MlflowClient(tracking_uri)
+    experiment = client.get_experiment_by_name("ch4/table_4_1")
+    return client, [r for r in client.search_runs([experiment.experiment_id]) if r.data.tags.get("kind") != "summary"]
+
+
+def test_sweep_lands_as_named_tagged_runs_in_one_experiment(joblib_sweep, base_run_name):
+    client, jobs = sweep_jobs(joblib_sweep[0])
+    names = sorted(base_run_name(r) for r in jobs)
+    assert names == [f"ch4/table_4_1-{m}-2of3-seed{s}" for m in ("mlp", "ours") for s in (0, 1)]
+    assert all(r.info.status == "FINISHED" for r in jobs)
+    assert len({r.data.tags["sweep"] for r in jobs}) == 1  # the parallel jobs share one sweep id
+    for run in jobs:
+        tags = run.data.tags
+        assert {"chapter", "table", "method", "seed", "sweep"} <= set(tags)
+        assert tags["chapter"] == "ch4" and tags["table"] == "table_4_1" and tags["sweep"] != "none"
+        assert 0.0 <= run.data.metrics["sr"] <= 1.0
+        assert run.data.metrics["latency_ms_batch1"] > 0
+        assert run.data.params["reasoning.name"] == run.data.tags["method"]
+        history = client.get_metric_history(run.info.run_id, "train_loss")
+        assert len(history) == 1  # one value per epoch (max_epochs=1)
+        artifacts = {a.path for a in client.list_artifacts(run.info.run_id, "tables")}
+        assert {"tables/table_4_1.csv", "tables/table_4_1.md"} <= artifacts
+        assert client.list_artifacts(run.info.run_id, "config")
+        assert client.list_artifacts(run.info.run_id, "hydra")
+
+
+def test_sweep_prints_the_summary_table(joblib_sweep):
+    _, stdout = joblib_sweep
+    assert "Table 4.1" in stdout and "(thesis 1.00 ± 0.00)" in stdout
+
+
+def test_report_command_writes_markdown_and_plot(joblib_sweep, tmp_path, capsys):
+    from hrc_lab.report.cli import main as report_main
+
+    tracking_uri, _ = joblib_sweep
+    report_main(["ch4_reasoning", "--tracking-uri", tracking_uri, "--out", str(tmp_path)])
+    report = (tmp_path / "ch4_reasoning.md").read_text()
+    assert "| Ours" in report and "| MLP" in report
+    # The sweep's size overrides make it an ablation variant: its table and plot carry the variant id.
+    (variant,) = {r.data.tags.get("variant", "default") for r in sweep_jobs(tracking_uri)[1]}
+    plot = "table_4_1.png" if variant == "default" else f"table_4_1_{variant}.png"
+    assert (tmp_path / "ch4_reasoning" / plot).stat().st_size > 1000
+    assert "## fig_4_7\n\nNo finished default runs yet" in report  # fig 4.7 and the others were not run here
+    assert f"wrote {tmp_path / 'ch4_reasoning.md'}" in capsys.readouterr().out
