@@ -111,10 +111,13 @@ def group_registries() -> dict[str, Registry]:
 
 def register_schemas() -> None:
     """Give Hydra every group's schema before it composes a config, so each ``conf/<group>/*.yaml`` extends its
-    schema and names only what differs (``schema/<group>/<name>``; the trainer's as ``trainer/schema``). Called
-    when :mod:`hrc_lab.cli` is imported (also in a launcher's worker processes) and by the tests."""
+    schema and names only what differs (``schema/<group>/<name>``; the trainer's as ``trainer/schema``; each
+    experiment file's ``protocol`` extends ``schema/protocol/<name>``). Called when :mod:`hrc_lab.cli` is imported
+    (also in a launcher's worker processes) and by the tests."""
+    from hrc_lab.experiments import PROTOCOLS
+
     ConfigStore.instance().store(group="trainer", name="schema", node=TrainerConfig)
-    for registry in group_registries().values():
+    for registry in (*group_registries().values(), PROTOCOLS):
         registry.store_schemas()
 
 

@@ -1,11 +1,9 @@
 """Ch.6 clutter cell: the graspability rule on hand-built scenes, the spec's checks, and one rendered scene."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
-from omegaconf import OmegaConf
 
+import hrc_lab.config  # noqa: F401  (stores the schemas that conf/env/clutter.yaml extends)
 from hrc_lab.env import ENVS
 from hrc_lab.env.clutter import ClutterObject, ClutterScene, ClutterSpec
 from hrc_lab.env.clutter_rule import (
@@ -20,7 +18,6 @@ from hrc_lab.env.clutter_rule import (
 )
 from hrc_lab.registry import ConfigError
 
-CONF = Path(__file__).resolve().parents[1] / "conf"
 SPEC = ClutterSpec()
 A, B, C = (SPEC.part_size[t] for t in "abc")  # a: 0.032 x 0.024 x 0.018, b: 0.10 x 0.04 x 0.03, c: 0.06^2 x 0.07
 
@@ -108,8 +105,8 @@ def test_oriented_boxes_intersect_only_when_they_overlap():
     assert not boxes_intersect(np.zeros(3), axes, half, np.array([1.0, 0, 0]), axes, half)  # touching faces
 
 
-def test_config_matches_the_defaults_and_errors_name_the_key():
-    assert ENVS.validate(OmegaConf.load(CONF / "env" / "clutter.yaml")) == ClutterSpec()
+def test_config_matches_the_defaults_and_errors_name_the_key(compose_config):
+    assert ENVS.validate(compose_config("env=clutter").env) == ClutterSpec()
     with pytest.raises(ConfigError, match="env.min_objects"):
         ENVS.validate({"name": "clutter", "min_objects": 5, "max_objects": 4})
     with pytest.raises(ValueError, match="env.image_size"):

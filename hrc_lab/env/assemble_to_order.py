@@ -2,8 +2,8 @@
 
 A product is built from typed parts (o1 x3, o2 x2, o3 x1) on a bracket with six numbered positions. A goal
 configuration says which part type goes to each position. Fig. 5.4 is not legible in the thesis' text, so the
-default goals (``conf/env/ato.yaml``) are our own, chosen so that every object-position pair of Table 5.1 is used
-by at least one goal, o2's pairs are disjoint across goals and o3 sits at p1, p4, p5 in turn. Like the thesis'
+default goals (:class:`AssembleToOrderSpec`) are our own, chosen so that every object-position pair of Table 5.1 is
+used by at least one goal, o2's pairs are disjoint across goals and o3 sits at p1, p4, p5 in turn. Like the thesis'
 goals, they share pairs (o1 at p2 in g0 and g1, o1 at p3 in g0 and g2, o1 at p6 in g1 and g2): a scene made only
 of a shared pair cannot tell the goals apart, the thesis' main failure case.
 
@@ -38,21 +38,26 @@ def _default_goals() -> list[list[str]]:
 
 @dataclass
 class AssemblyVideoSpec:
-    """Camera, timing and the ranges every generated clip of the cell is sampled from (``env.video``; the
-    videos themselves are made by :mod:`hrc_lab.env.assembly_video`)."""
+    """Camera, timing and the ranges every generated clip of the cell is sampled from (``env.video``: top-down
+    videos of the cell with a rendered right hand for the Ch.5 perception; the videos themselves are made by
+    :mod:`hrc_lab.env.assembly_video`)."""
 
     width: int = 320
     height: int = 240
-    fps: int = 15
+    fps: int = 15  # thesis: 15 FPS camera
     window: int = 45  # frames per action segment (thesis: 45 at 15 FPS)
-    hand_length: list[float] = field(default_factory=lambda: [85.0, 110.0])  # wrist to middle fingertip, px
+    # wrist to middle fingertip, px (MediaPipe finds hands under ~60 % of the frame height)
+    hand_length: list[float] = field(default_factory=lambda: [85.0, 110.0])
     light: list[float] = field(default_factory=lambda: [0.8, 1.15])  # brightness gain of hand and scene
-    speed: list[float] = field(default_factory=lambda: [0.85, 1.15])  # motion time = (0.65 window) / speed
-    fast_speed: list[float] = field(default_factory=lambda: [1.8, 2.4])  # fast sessions: segments 1/speed as long
+    # the motion takes 0.65 x window / speed frames, after a random delay
+    speed: list[float] = field(default_factory=lambda: [0.85, 1.15])
+    # fast sessions: each segment lasts window / speed frames and the hand is motion-blurred
+    fast_speed: list[float] = field(default_factory=lambda: [1.8, 2.4])
     hand_blur: int = 9  # Gaussian kernel of the hand layer (the recipe MediaPipe detects)
-    wobble_px: float = 4.0  # amplitude of the slow path deviation
+    wobble_px: float = 4.0  # amplitude of the slow deviation from the minimum-jerk path
     jitter_px: float = 0.7  # per-frame tremor
-    gap_frames: list[int] = field(default_factory=lambda: [4, 10])  # hand out of view after a placement or a screw
+    # hand out of view after a placement or a screw (5.2.3)
+    gap_frames: list[int] = field(default_factory=lambda: [4, 10])
     camera_noise: float = 2.0  # std of per-pixel noise (grey levels)
 
     def __post_init__(self) -> None:
@@ -81,8 +86,8 @@ class AssembleToOrderSpec:
     allowed_positions: dict[str, list[int]] = field(
         default_factory=lambda: {"o1": [1, 2, 3, 4, 5, 6], "o2": [1, 2, 3, 4, 5, 6], "o3": [1, 4, 5]}
     )
-    goals: list[list[str]] = field(default_factory=_default_goals)
-    n_goals: int = 3
+    goals: list[list[str]] = field(default_factory=_default_goals)  # part type at positions p1 .. p6, per goal
+    n_goals: int = 3  # the first n goals are in play
     video: AssemblyVideoSpec = field(default_factory=AssemblyVideoSpec)
 
     def __post_init__(self) -> None:

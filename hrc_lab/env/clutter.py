@@ -24,24 +24,27 @@ PART_TYPES = ("a", "b", "c")
 
 @dataclass(frozen=True)
 class ClutterSpec:
-    """Parts, table area, drop, camera and gripper of the clutter cell (``conf/env/clutter*.yaml``)."""
+    """Parts, table area, drop, camera and gripper of the clutter cell (``conf/env/clutter*.yaml``). The thesis
+    gives no sizes: these are ours, tuned so that every solution occurs."""
 
+    # most parts of each type in a scene (Sec. 6.3)
     max_counts: dict[str, int] = field(default_factory=lambda: {"a": 3, "b": 2, "c": 1})
     # full extents (x, y, z) of each part's box, m: a smallest, c tallest
     part_size: dict[str, list[float]] = field(
         default_factory=lambda: {"a": [0.032, 0.024, 0.018], "b": [0.10, 0.04, 0.03], "c": [0.06, 0.06, 0.07]}
     )
-    min_objects: int = 3
+    min_objects: int = 3  # parts per scene: uniform in [min_objects, max_objects]
     max_objects: int = 6
     spawn_half_width: float = 0.06  # parts are dropped within +-this of the table centre (x and y), m
     drop_spacing: float = 0.02  # each part is dropped with its lowest corner this far above the pile, m
-    max_drop_tilt_deg: float = 10.0  # initial roll and pitch are uniform within +-this, degrees
+    max_drop_tilt_deg: float = 10.0  # initial roll and pitch are uniform within +-this, degrees (yaw is uniform)
     min_visible_fraction: float = 0.1  # a part must show this fraction of its smallest face's pixels, else redraw
     image_size: int = 160  # square top-down RGB image, pixels
-    camera_height: float = 0.55  # m above the table
-    view_margin: float = 0.03  # the image covers the spawn area plus the largest half-footprint plus this, m
-    finger_width: float = 0.012  # gripper finger extent across the closing direction, m
-    finger_thickness: float = 0.008  # finger extent along the closing direction, m
+    camera_height: float = 0.55  # m above the table centre, looking straight down
+    # the image covers the spawn area plus the largest half-footprint plus this, m (sets the field of view)
+    view_margin: float = 0.03
+    finger_width: float = 0.012  # gripper finger extent across the closing direction (y), m
+    finger_thickness: float = 0.008  # finger extent along the closing direction (x), m
     finger_gap: float = 0.003  # opening beyond the part on each side, m
     grasp_depth: float = 0.008  # how far below a part's top the fingers reach, m
 

@@ -34,8 +34,8 @@ class PackageToOrderSpec:
     """Geometry and order size of one n-of-m experiment. Lengths in metres, world frame (z up, table top at
     ``table_z``). Each product has its own pending cell along x; positions jitter inside the cell."""
 
-    n_objects: int = 5
-    n_selected: int = 4
+    n_objects: int = 5  # m
+    n_selected: int = 4  # n
     n_slots: int | None = None  # goal slots in the box; None means n_selected (the thesis' setting)
     table_z: float = 0.8
     product_size: float = 0.04
@@ -43,7 +43,9 @@ class PackageToOrderSpec:
     pending_spacing: float = 0.08  # along x between neighbouring products' cells
     pick_jitter: tuple[float, float] = (0.015, 0.075)  # +-x, +-y around a product's nominal position
     box_center: tuple[float, float] = (0.0, 0.30)
-    box_jitter: tuple[float, float] = (0.0, 0.0)  # +-x, +-y of the whole box (motion module: 0.175, 0.1)
+    # +-x, +-y of the whole box: the reasoning experiments keep it fixed (thesis 4.4.1: object positions vary); the
+    # thesis' motion module handles up to 0.175, 0.1
+    box_jitter: tuple[float, float] = (0.0, 0.0)
     slot_spacing: float = 0.08
     box_floor: float = 0.01
     lift_height: float = 0.15  # height above the table of a product held at the start of a placing stage

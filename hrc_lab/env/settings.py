@@ -21,12 +21,14 @@ class SimSettings:
     control_freq: int = 20  # Hz; one action per 50 ms
     physics_timestep: float = 0.005  # s per MuJoCo step (10 per action at 20 Hz)
     horizon: int = 1000  # control steps per episode
-    success_threshold: float = 0.06  # delta_r of Eq. 3.6 / 4.7, m
-    max_joint_step_deg: float = 5.0  # per-step joint delta limit (thesis: -5 ... 5 deg)
+    success_threshold: float = 0.06  # delta_r of Eq. 3.6 / 4.7, m (Table 3.1 also scores at 0.08)
+    max_joint_step_deg: float = 5.0  # per-step joint delta limit (thesis 4.4.3: -5 ... 5 deg)
     yaw_action: bool = False  # add a wrist-3 delta to the action (DRL agent of 3.3)
     disable_effector_on_collision: bool = False  # DRL setting of 3.3
-    case: int = 1  # CASE 1 / CASE 2 of the scenario
-    n_missing: int = 0  # products absent at the start (package_to_order, 4.4.5)
+    # CASE 1 / CASE 2 of the scenario. package_to_order: 1 robot alone, 2 a simulated human packs a random subset
+    # first; error_correction one_object: 1 blue wrong, 2 red wrong; two_object: 1 blue on red's place, 2 red on blue's
+    case: int = 1
+    n_missing: int = 0  # products absent at the start, restocked later (package_to_order, 4.4.5)
 
     def __post_init__(self) -> None:
         if self.control_freq < 1:
@@ -51,7 +53,8 @@ class SimSettings:
 
 @dataclass(frozen=True)
 class PackageToOrderConfig(PackageToOrderSpec):
-    """The package-to-order spec plus the robot cell settings."""
+    """The package-to-order spec plus the robot cell settings (``sim``: robosuite UR5e + suction cup,
+    :mod:`hrc_lab.env.sim`; unused by the reasoning-only experiments)."""
 
     sim: SimSettings = field(default_factory=SimSettings)
 
@@ -75,7 +78,7 @@ class ErrorCorrectionConfig:
     """Ch.3 error correction: ``task`` one_object | two_object | place | stack (case 1 only for place/stack)."""
 
     task: str = "one_object"
-    sim: SimSettings = field(default_factory=lambda: SimSettings(horizon=400))
+    sim: SimSettings = field(default_factory=lambda: SimSettings(horizon=400))  # 400 control steps per episode
 
     def __post_init__(self) -> None:
         if self.task not in EC_TASKS:

@@ -17,8 +17,8 @@ class Table41Protocol:
     """Full demo set (every goal configuration, random positions), CASE 1; fold ``seed % n_folds`` of a k-fold
     split over the demonstrations is the test set."""
 
-    min_demos: int = 200
-    n_folds: int = 5
+    min_demos: int = 200  # every goal configuration repeated until the demo set has at least this many episodes
+    n_folds: int = 5  # seed k tests on fold k % 5
 
     def __post_init__(self) -> None:
         if self.n_folds < 2:
@@ -56,7 +56,7 @@ class PracticalProtocol:
     missing_tests: int = 180
     train_selected: int = 2
     test_selected: list[int] = field(default_factory=lambda: [3, 4])
-    slots: int = 4
+    slots: int = 4  # the box has 4 slots so that every order size has its goal positions
     test_tests: int = 100
 
     def __post_init__(self) -> None:
@@ -127,9 +127,9 @@ class ActionClipsProtocol:
     ``workers`` processes and cached."""
 
     data_seed: int = 0
-    clips_per_class: int = 24
-    tracker_complexity: int = 0
-    workers: int = 2
+    clips_per_class: int = 24  # 432 clips of 45 frames; the thesis does not give its number of segments
+    tracker_complexity: int = 0  # MediaPipe's lite landmark model: half the time of the full one on this CPU
+    workers: int = 2  # processes that render and track the clips (once, then cached)
 
     def __post_init__(self) -> None:
         if self.data_seed < 0:
@@ -228,7 +228,7 @@ class CollectProtocol:
 class RenderDemoProtocol:
     """One expert episode rendered off-screen (MUJOCO_GL=egl by default, or osmesa) to MP4."""
 
-    camera: str = "cellview"
+    camera: str = "cellview"  # or robosuite's frontview, birdview, agentview, sideview
     width: int = 480
     height: int = 360
     frame_skip: int = 2  # render every k-th control step
@@ -286,6 +286,7 @@ class Table31Protocol:
     max_steps_per_subgoal: int = 30
     tolerance: float = 0.008
     segmentation_penalty: float = 1e-3
+    # demonstrated (the change point) and/or executed (the previous stage's last sub-goal, as the closed loop starts it)
     stage_starts: list[str] = field(default_factory=lambda: ["demonstrated"])
     placement_noise: float = 0.0
 

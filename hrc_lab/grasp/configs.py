@@ -23,14 +23,17 @@ DECODERS = ("lstm_att", "lstm")
 
 @dataclass
 class DetectorConfig:
-    """Size, training and post-processing of the detector (see the module docstring for the choices)."""
+    """Size, training and post-processing of the detector (:mod:`hrc_lab.grasp.detector` explains the sizes): a
+    Faster R-CNN trained from scratch on the rendered training scenes (the thesis used a pretrained
+    ResNet-101-FPN), trained once per data set and cached under ``runs/cache/ch6``."""
 
-    image_size: int = 160  # input side, px (no resizing inside the model)
+    image_size: int = 160  # input side, px (no resizing inside the model); must equal env.image_size
     width: int = 16  # channels of the first backbone stage (then 2x, 4x)
     blocks: int = 1  # BasicBlocks per backbone stage
     fpn_channels: int = 32
     representation_size: int = 128  # size of f_i (the TwoMLPHead output)
-    anchor_sizes: list[list[int]] = field(default_factory=lambda: [[12, 20], [28, 40], [56, 80]])  # per FPN level
+    # px, per FPN level (strides 4, 8, 16)
+    anchor_sizes: list[list[int]] = field(default_factory=lambda: [[12, 20], [28, 40], [56, 80]])
     aspect_ratios: list[float] = field(default_factory=lambda: [0.5, 1.0, 2.0])
     rpn_post_nms_train: int = 256  # proposals per image kept for the box head in training
     rpn_post_nms_test: int = 100
@@ -41,16 +44,17 @@ class DetectorConfig:
     lr: float = 2e-3  # AdamW, linear warm-up then cosine decay to 0
     weight_decay: float = 1e-4
     warmup_steps: int = 100
-    flip: bool = True  # random horizontal and vertical flips in training
+    flip: bool = True  # random horizontal and vertical flips in training (they keep the gripper's closing axis)
     score_threshold: float = 0.5  # detections below are dropped by detect()
     nms: float = 0.5  # per-class NMS IoU of the box head
     agnostic_nms: float = 0.7  # class-agnostic NMS IoU after it (1.0: off)
     max_detections: int = 20  # per image
     seed: int = 0  # initialisation, sampling order and flips
     mode: str = "trained"  # "trained": detections; "oracle": ground-truth boxes, features from the same network
-    # > 1: f_i also holds the box-head feature of the box enlarged by this factor about its centre, the
-    # neighbourhood that a deep backbone's receptive field covers (the thesis' ResNet-101; ours is narrow); 0: off
-    context_scale: float = 0.0
+    # > 1: f_i = [box feature, box-head feature of the box enlarged by this factor about its centre], the
+    # neighbourhood that a deep backbone's receptive field covers (the thesis' ResNet-101; ours is narrow). Not in
+    # the thesis; 0: off
+    context_scale: float = 1.8
 
     def __post_init__(self) -> None:
         for key in ("image_size", "width", "blocks", "fpn_channels", "representation_size", "rpn_post_nms_train",
@@ -84,7 +88,8 @@ class DetectorConfig:
 
 @dataclass
 class GraspSolverConfig:
-    """Scene graph (Eq. 6.1), WL-GNN (Eq. 6.2-6.3) and solution decoder (Eq. 6.4-6.7)."""
+    """Scene graph (Eq. 6.1), WL-GNN (Eq. 6.2-6.3) and solution decoder (Eq. 6.4-6.7); the defaults are the thesis'
+    GNN_Att (``conf/grasp/gnn_att.yaml``). The thesis gives no sizes or learning rate."""
 
     edges: str = "inverse_distance"  # Eq. 6.1; "ones": every weight 1; "distance_filter": 1 within distance_filter
     distance_filter: float = 0.16  # image-normalised box-centre distance of GNN_DF_Att
