@@ -6,12 +6,16 @@ run's artifacts under ``checkpoints/<name>/``. A job started with ``resume_from=
 from that run's checkpoint of the same name: fits that had finished are loaded as they ended, the interrupted one
 continues from its last saved epoch. The checkpoint also holds the random number generators' states, so the
 resumed job draws the same batches and ends with the same metrics as one that was never interrupted.
+
+Every model trains as a :class:`SupervisedModule` (a network, an objective returning the loss and the values to
+log, the optimizer's settings), most of them on a :class:`FixedStepDataModule` (batches drawn with replacement, a
+fixed number per epoch).
 """
 
 from __future__ import annotations
 
 import random
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +23,10 @@ import lightning.pytorch as pl
 import numpy as np
 import torch
 from lightning.pytorch.callbacks import Callback, ModelCheckpoint
+from torch import nn
+from torch.utils.data import DataLoader, Dataset, RandomSampler, TensorDataset
+from torchmetrics.functional.classification import binary_accuracy as torchmetrics_binary_accuracy
+from torchmetrics.functional.classification import multiclass_accuracy
 
 
 class Trainer(pl.Trainer):
@@ -77,3 +85,132 @@ class RandomState(Callback):
         kind, keys, pos, has_gauss, cached = state_dict["numpy"]
         np.random.set_state((kind, keys.numpy().astype(np.uint32), pos, has_gauss, cached))
         random.setstate(state_dict["python"])
+
+
+# --- what every model trains with ---------------------------------------------------------------------------------
+# Seeding: the fits that seed (torch.manual_seed in the methods' ``fit``) seed torch's global generator, and the
+# ones that do not draw their initial weights and batches from it. Lightning's Trainer keeps no generator of its own
+# (``RandomState`` above saves the global ones in checkpoints), so that global state is part of a job's numbers: a
+# fit that restored it afterwards (``torch.random.fork_rng``) would change what every later fit of the job draws.
+
+Objective = Callable[[nn.Module, Any], tuple[torch.Tensor, dict[str, torch.Tensor]]]
+OPTIMIZERS: dict[str, type[torch.optim.Optimizer]] = {"adam": torch.optim.Adam, "adamw": torch.optim.AdamW}
+
+
+def batch_size_of(batch: Any) -> int:
+    """The number of samples in a batch: graphs of a PyG batch, else the length of its first entry (a list or
+    tuple of tensors, a dict of tensors)."""
+    if hasattr(batch, "num_graphs"):
+        return int(batch.num_graphs)
+    first = next(iter(batch.values())) if isinstance(batch, dict) else batch[0]
+    return len(first)
+
+
+def accuracy(logits: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
+    """The fraction of rows of ``logits`` (N, classes) whose argmax is the label (torchmetrics' micro accuracy);
+    NaN for no rows (the mean of nothing, as the losses of an empty batch)."""
+    if labels.numel() == 0:
+        return torch.full((), float("nan"), device=logits.device)
+    return multiclass_accuracy(logits, labels, num_classes=logits.shape[-1], average="micro")
+
+
+def binary_accuracy(predicted: torch.Tensor, truth: torch.Tensor) -> torch.Tensor:
+    """The fraction of the boolean ``predicted`` equal to the boolean ``truth`` (torchmetrics' binary accuracy);
+    NaN when empty."""
+    if truth.numel() == 0:
+        return torch.full((), float("nan"), device=truth.device)
+    return torchmetrics_binary_accuracy(predicted.long(), truth.long())
+
+
+class SupervisedModule(pl.LightningModule):
+    """Minimises ``objective(network, batch)``, which returns the loss and a dict of other values to log.
+
+    Logs ``train_loss`` and ``train_<name>`` for every other value per epoch: the mean over the epoch's batches
+    weighted by ``batch_size(batch)`` (default :func:`batch_size_of`). ``optimizer``: ``"adam"`` or ``"adamw"``,
+    with ``lr`` and ``weight_decay``. Models with more to configure (the detector's learning-rate schedule)
+    subclass it; :class:`ValidatedModule` also scores validation data."""
+
+    def __init__(self, network: nn.Module, objective: Objective, lr: float, weight_decay: float = 0.0,
+                 optimizer: str = "adam", batch_size: Callable[[Any], int] = batch_size_of) -> None:
+        super().__init__()
+        if optimizer not in OPTIMIZERS:
+            raise ValueError(f"optimizer must be one of {sorted(OPTIMIZERS)}, got {optimizer!r}")
+        self.network = network
+        self.objective = objective
+        self.lr, self.weight_decay, self.optimizer_name = lr, weight_decay, optimizer
+        self.batch_size_of = batch_size
+
+    def _step(self, batch: Any, stage: str) -> torch.Tensor:
+        loss, values = self.objective(self.network, batch)
+        logs = {f"{stage}_loss": loss} | {f"{stage}_{name}": value for name, value in values.items()}
+        self.log_dict(logs, on_step=False, on_epoch=True, batch_size=self.batch_size_of(batch))
+        return loss
+
+    def training_step(self, batch: Any, batch_idx: int) -> torch.Tensor:
+        return self._step(batch, "train")
+
+    def configure_optimizers(self):
+        return OPTIMIZERS[self.optimizer_name](self.parameters(), lr=self.lr, weight_decay=self.weight_decay)
+
+
+class ValidatedModule(SupervisedModule):
+    """A :class:`SupervisedModule` that also logs ``val_loss`` and ``val_<name>`` per epoch on the fit's validation
+    data (a separate class: Lightning warns about a ``validation_step`` without validation data)."""
+
+    def validation_step(self, batch: Any, batch_idx: int) -> None:
+        self._step(batch, "val")
+
+
+class FixedStepDataModule(pl.LightningDataModule):
+    """Training samples drawn with replacement, so that an epoch is ``steps_per_epoch`` batches of ``batch_size``
+    whatever the data set's size (the experiments train on a dozen to thousands of samples).
+
+    ``samples``: a map-style dataset (e.g. a ``TensorDataset`` of input and target tensors; items batched by
+    ``collate_fn``, torch's default collation when None) or a list of PyG graphs (batched by PyG's ``DataLoader``).
+    ``generator`` draws the samples; when None, ``RandomSampler`` takes a seed from torch's global generator at
+    every epoch."""
+
+    def __init__(self, samples: Dataset | Sequence, batch_size: int, steps_per_epoch: int,
+                 generator: torch.Generator | None = None, collate_fn: Callable | None = None) -> None:
+        super().__init__()
+        if len(samples) == 0:
+            raise ValueError("no training samples")
+        self.samples = samples
+        self.batch_size = batch_size
+        self.steps_per_epoch = steps_per_epoch
+        self.generator = generator
+        self.collate_fn = collate_fn
+
+    def train_dataloader(self) -> DataLoader:
+        sampler = RandomSampler(self.samples, replacement=True, num_samples=self.batch_size * self.steps_per_epoch,
+                                generator=self.generator)
+        if _holds_graphs(self.samples):
+            from torch_geometric.loader import DataLoader as GraphLoader
+
+            return GraphLoader(self.samples, batch_size=self.batch_size, sampler=sampler)
+        return DataLoader(self.samples, batch_size=self.batch_size, sampler=sampler, collate_fn=self.collate_fn)
+
+
+def _holds_graphs(samples: Dataset | Sequence) -> bool:
+    """Whether ``samples`` are PyG graphs (a list of them or a PyG dataset), found without importing PyG and
+    without reading a dataset's item (which may draw a random augmentation)."""
+    if isinstance(samples, Dataset):
+        return any(c.__module__.startswith("torch_geometric.") for c in type(samples).__mro__)
+    return type(samples[0]).__module__.startswith("torch_geometric.")
+
+
+def steps_per_epoch(total_steps: int, trainer: pl.Trainer) -> int:
+    """``total_steps`` gradient steps split over the Trainer's ``max_epochs`` (at least one per epoch)."""
+    epochs = trainer.max_epochs if trainer.max_epochs and trainer.max_epochs > 0 else 1
+    return max(1, total_steps // epochs)
+
+
+def fit_tensors(network: nn.Module, objective: Objective, tensors: Sequence[torch.Tensor], lr: float, steps: int,
+                batch_size: int, trainer_factory: Callable[[], pl.Trainer]) -> nn.Module:
+    """Train ``network`` on the rows of ``tensors`` (inputs and targets, one batch of each is the objective's
+    ``batch``) for about ``steps`` gradient steps with Adam; ``trainer_factory()`` builds the Trainer (from
+    ``conf/trainer``, logging into the job's MLflow run). Returns the network in eval mode."""
+    trainer = trainer_factory()
+    data = FixedStepDataModule(TensorDataset(*tensors), batch_size, steps_per_epoch(steps, trainer))
+    trainer.fit(SupervisedModule(network, objective, lr), datamodule=data)
+    return network.eval()

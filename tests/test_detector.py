@@ -11,13 +11,13 @@ from hrc_lab.env.clutter import ClutterObject, ClutterScene
 from hrc_lab.grasp.detector import (
     Detections,
     DetectorConfig,
+    DetectorModule,
     ObjectDetector,
     detection_quality,
-    detector_cache_key,
-    load_or_train_detector,
     match_detections,
     scene_target,
 )
+from hrc_lab.grasp.detector_cache import detector_cache_key, load_or_train_detector
 
 SIZE = 64
 
@@ -25,7 +25,7 @@ SIZE = 64
 def tiny_config(**overrides) -> DetectorConfig:
     values = dict(image_size=SIZE, width=4, fpn_channels=8, representation_size=16, steps=1, batch_size=2,
                   warmup_steps=0, score_threshold=0.0, rpn_post_nms_train=32, rpn_post_nms_test=16,
-                  rpn_batch_size=32, box_batch_size=16)
+                  rpn_batch_size=32, box_batch_size=16, context_scale=0.0)
     return DetectorConfig(**(values | overrides))
 
 
@@ -79,9 +79,10 @@ def test_same_seed_same_weights():
 @pytest.mark.filterwarnings("ignore:.*self.trainer.* reference is not registered")
 def test_one_training_step_has_finite_loss():
     detector = ObjectDetector(tiny_config())
-    detector.train()
+    module = DetectorModule(detector.model, tiny_config())
+    module.train()
     images, targets = zip(*(scene_target(toy_scene(s)) for s in range(2)))
-    loss = detector.training_step((images, targets), 0)
+    loss = module.training_step((images, targets), 0)
     assert torch.isfinite(loss)
     loss.backward()
     assert any(p.grad is not None and p.grad.abs().sum() > 0 for p in detector.parameters())

@@ -14,7 +14,8 @@ from hrc_lab.data.files import DataFileError, load_torch
 from hrc_lab.env.clutter import ClutterObject, ClutterScene
 from hrc_lab.env.clutter_scene import load_scenes, save_scenes
 from hrc_lab.experiments.ch5_perception import read_video
-from hrc_lab.grasp.detector import DetectorConfig, load_or_train_detector
+from hrc_lab.grasp.detector import DetectorConfig
+from hrc_lab.grasp.detector_cache import load_or_train_detector
 from hrc_lab.perception.dataset import ActionSet
 
 

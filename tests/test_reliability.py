@@ -14,15 +14,15 @@ import lightning.pytorch as pl
 import pytest
 import torch
 from mlflow.tracking import MlflowClient
+from torch.utils.data import TensorDataset
 
 from hrc_lab.cli import check_resumable, run_name, variant_of
 from hrc_lab.config import LoggerConfig, validate_config
 from hrc_lab.interrupts import RunInterrupted, signals_raise
-from hrc_lab.motion.training import SupervisedModule, TensorDataModule
 from hrc_lab.registry import ConfigError
 from hrc_lab.runs_cli import stale
 from hrc_lab.tracking import RunTracker, process_identity
-from hrc_lab.training import RandomState, RunCheckpoint, Trainer
+from hrc_lab.training import FixedStepDataModule, RandomState, RunCheckpoint, SupervisedModule, Trainer
 
 
 @pytest.mark.parametrize(
@@ -104,12 +104,12 @@ def _fit(checkpoints: Path, max_epochs: int, resume: Path | None = None) -> torc
     pl.seed_everything(0, verbose=False)
     network = torch.nn.Sequential(torch.nn.Linear(3, 16), torch.nn.Dropout(0.3), torch.nn.Linear(16, 1))
     data = [torch.randn(64, 3), torch.randn(64, 1)]
-    module = SupervisedModule(network, lambda net, x, y: (((net(x) - y) ** 2).mean(), {}), lr=1e-2)
+    module = SupervisedModule(network, lambda net, batch: (((net(batch[0]) - batch[1]) ** 2).mean(), {}), lr=1e-2)
     uploaded = []
     callbacks = [RandomState(), RunCheckpoint(checkpoints, 1, uploaded.append)]
     trainer = Trainer(max_epochs=max_epochs, logger=False, callbacks=callbacks, enable_progress_bar=False,
                       enable_model_summary=False, deterministic=True, resume_checkpoint=resume)
-    trainer.fit(module, datamodule=TensorDataModule(data, 8, 5))
+    trainer.fit(module, datamodule=FixedStepDataModule(TensorDataset(*data), 8, 5))
     assert uploaded and uploaded[-1].name == "last.ckpt"
     return torch.cat([p.detach().flatten() for p in network.parameters()])
 

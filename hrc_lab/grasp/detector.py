@@ -4,9 +4,9 @@ The thesis detects the parts a, b, c of the cluttered scene with a Faster R-CNN 
 pretrained, on a GPU) and builds the graph of Eq. 6.1 from each detection's feature vector f_i, its label l_i and
 the centre d_i of its box. Here the same architecture is torchvision's ``FasterRCNN`` built from scratch
 (``weights=None`` everywhere: nothing can be downloaded) and sized to train on a shared 2-core CPU in ~10 min
-(defaults: 1,500 steps of 8 images, ~0.4 s a step with ``torch.set_num_threads(1)``; on 400 MuJoCo scenes of
-160 px it finds ~95 % of 238 held-out parts at IoU 0.5 with ~98 % precision, mAP@0.5 0.97; 2,000 steps did not
-do better). Choices:
+(defaults: 1,500 steps of 8 images, ~0.4 s a step with ``torch.set_num_threads(1)``). Its quality on the
+held-out scenes is a Table 6.1 run's output: metrics ``detector_map`` (AP at IoU 0.5), ``detector_recall``,
+``detector_precision`` and ``detector_scene_exact``. Choices:
 
 - backbone: a narrow ResNet-18-like stack (a stride-2 stem, then three stages of ``blocks`` BasicBlocks with
   ``width``, 2 ``width`` and 4 ``width`` channels at strides 4, 8, 16) and a 3-level FPN of ``fpn_channels``.
@@ -38,18 +38,16 @@ the closing direction (and the detector does not need rotations: the parts come 
 
 from __future__ import annotations
 
-import os
-import time
 from collections import OrderedDict
-from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
-from pathlib import Path
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import partial
 
 import lightning.pytorch as pl
 import numpy as np
 import torch
 from torch import nn
-from torch.utils.data import DataLoader, Dataset, RandomSampler
+from torch.utils.data import Dataset
 from torchvision.models.detection import FasterRCNN
 from torchvision.models.detection.anchor_utils import AnchorGenerator
 from torchvision.models.detection.faster_rcnn import FastRCNNPredictor, TwoMLPHead
@@ -57,10 +55,9 @@ from torchvision.models.resnet import BasicBlock
 from torchvision.ops import MultiScaleRoIAlign, box_iou, nms
 from torchvision.ops.feature_pyramid_network import FeaturePyramidNetwork
 
-from hrc_lab.cache import cache_key, cached
-from hrc_lab.data.files import DataFileError, load_torch, load_weights
 from hrc_lab.env.clutter import PART_TYPES, ClutterScene
 from hrc_lab.grasp.configs import LEVELS, DetectorConfig
+from hrc_lab.training import FixedStepDataModule, SupervisedModule, steps_per_epoch
 
 
 class SmallBackbone(nn.Module):
@@ -177,47 +174,48 @@ def _collate(batch):
     return tuple(zip(*batch))
 
 
-class ObjectDetector(pl.LightningModule):
-    """The Faster R-CNN of Fig. 6.1 as a LightningModule: ``fit`` on scenes, then ``detect`` parts with their f_i."""
+def random_flips(images: list[torch.Tensor], targets: list[dict]) -> tuple[list[torch.Tensor], list[dict]]:
+    """Each image and its boxes flipped horizontally, then vertically, each with probability 0.5 (torch's global
+    generator)."""
+    out_images, out_targets = [], []
+    for image, target in zip(images, targets):
+        boxes = target["boxes"].clone()
+        height, width = image.shape[-2:]
+        if torch.rand(()) < 0.5:
+            image = image.flip(-1)
+            boxes[:, [0, 2]] = width - boxes[:, [2, 0]]
+        if torch.rand(()) < 0.5:
+            image = image.flip(-2)
+            boxes[:, [1, 3]] = height - boxes[:, [3, 1]]
+        out_images.append(image)
+        out_targets.append({**target, "boxes": boxes})
+    return out_images, out_targets
 
-    def __init__(self, cfg: DetectorConfig) -> None:
-        super().__init__()
-        self.cfg = cfg
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(cfg.seed)
-            self.model = build_faster_rcnn(cfg)
 
-    # --- training ---------------------------------------------------------------------------------------------
-    def _flip(self, images: list[torch.Tensor], targets: list[dict]) -> tuple[list[torch.Tensor], list[dict]]:
-        out_images, out_targets = [], []
-        for image, target in zip(images, targets):
-            boxes = target["boxes"].clone()
-            height, width = image.shape[-2:]
-            if torch.rand(()) < 0.5:
-                image = image.flip(-1)
-                boxes[:, [0, 2]] = width - boxes[:, [2, 0]]
-            if torch.rand(()) < 0.5:
-                image = image.flip(-2)
-                boxes[:, [1, 3]] = height - boxes[:, [3, 1]]
-            out_images.append(image)
-            out_targets.append({**target, "boxes": boxes})
-        return out_images, out_targets
+def detection_objective(model: FasterRCNN, batch, flip: bool) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    """The sum of the Faster R-CNN's losses (RPN objectness and box regression, box-head classification and
+    regression) on a batch of (images, targets), with random flips when ``flip``; each loss by name."""
+    images, targets = batch
+    images = [im if im.dtype.is_floating_point else im.float() / 255 for im in images]
+    targets = list(targets)
+    if flip:
+        images, targets = random_flips(images, targets)
+    losses = model(images, targets)
+    return sum(losses.values()), losses
 
-    def training_step(self, batch, batch_idx: int) -> torch.Tensor:
-        images, targets = batch
-        images = [im if im.dtype.is_floating_point else im.float() / 255 for im in images]
-        if self.cfg.flip:
-            images, targets = self._flip(images, list(targets))
-        losses = self.model(images, list(targets))
-        loss = sum(losses.values())
-        self.log_dict({f"train_{k}": v for k, v in losses.items()} | {"train_loss": loss},
-                      on_step=False, on_epoch=True, batch_size=len(images))
-        return loss
+
+class DetectorModule(SupervisedModule):
+    """The detector's training: :func:`detection_objective` with AdamW, a linear warm-up over ``warmup_steps``
+    then a cosine decay to 0 over the fit's steps; logs ``train_loss`` and ``train_<each loss>`` per epoch."""
+
+    def __init__(self, model: FasterRCNN, cfg: DetectorConfig) -> None:
+        super().__init__(model, partial(detection_objective, flip=cfg.flip), cfg.lr, cfg.weight_decay, "adamw")
+        self.warmup_steps = cfg.warmup_steps
 
     def configure_optimizers(self):
-        optimizer = torch.optim.AdamW(self.parameters(), lr=self.cfg.lr, weight_decay=self.cfg.weight_decay)
+        optimizer = super().configure_optimizers()
         total = max(1, int(self.trainer.estimated_stepping_batches))
-        warmup = min(self.cfg.warmup_steps, total // 2)
+        warmup = min(self.warmup_steps, total // 2)
 
         def factor(step: int) -> float:
             if step < warmup:
@@ -227,20 +225,29 @@ class ObjectDetector(pl.LightningModule):
         scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, factor)
         return {"optimizer": optimizer, "lr_scheduler": {"scheduler": scheduler, "interval": "step"}}
 
+
+class ObjectDetector(nn.Module):
+    """The Faster R-CNN of Fig. 6.1 (``model``): ``fit`` on scenes, then ``detect`` parts with their f_i. Saved and
+    loaded by :mod:`hrc_lab.grasp.detector_cache`."""
+
+    def __init__(self, cfg: DetectorConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(cfg.seed)
+            self.model = build_faster_rcnn(cfg)
+
     def fit(self, scenes: Sequence[ClutterScene], trainer: pl.Trainer) -> ObjectDetector:
         """Train on the scenes for about ``cfg.steps`` steps (split over ``trainer.max_epochs``); returns self in
         eval mode. Scenes are sampled with replacement so an epoch is a fixed number of steps."""
         if not scenes:
             raise ValueError("no training scenes")
-        epochs = trainer.max_epochs if trainer.max_epochs and trainer.max_epochs > 0 else 1
-        steps_per_epoch = max(1, self.cfg.steps // epochs)
+        steps = steps_per_epoch(self.cfg.steps, trainer)
         torch.manual_seed(self.cfg.seed)  # RoI/anchor sampling and flips draw from the global generator
         generator = torch.Generator().manual_seed(self.cfg.seed)
-        dataset = _SceneDataset(scenes)
-        sampler = RandomSampler(dataset, replacement=True, num_samples=steps_per_epoch * self.cfg.batch_size,
-                                generator=generator)
-        loader = DataLoader(dataset, batch_size=self.cfg.batch_size, sampler=sampler, collate_fn=_collate)
-        trainer.fit(self, train_dataloaders=loader)
+        data = FixedStepDataModule(_SceneDataset(scenes), self.cfg.batch_size, steps, generator=generator,
+                                   collate_fn=_collate)
+        trainer.fit(DetectorModule(self.model, self.cfg), datamodule=data)
         return self.eval()
 
     # --- inference --------------------------------------------------------------------------------------------
@@ -397,45 +404,3 @@ def detection_quality(detections: Sequence[Detections], gt_boxes: Sequence, gt_t
     out["precision"] = tp / max(1, sum(c["n_pred"] for c in per_class.values()))
     out["scene_exact"] = float(np.mean(exact)) if exact else float("nan")
     return out
-
-
-# --- caching ----------------------------------------------------------------------------------------------------
-def detector_cache_key(cfg: DetectorConfig, scene_seeds: Sequence[int]) -> str:
-    """A short hash of the config and the (ordered) seeds of the training scenes."""
-    # oracle and trained modes, with or without context features, share the network
-    settings = {k: v for k, v in asdict(cfg).items() if k not in ("mode", "context_scale")}
-    return cache_key({"cfg": settings, "seeds": [int(s) for s in scene_seeds]}, length=16)
-
-
-def load_or_train_detector(cfg: DetectorConfig, scenes: Sequence[ClutterScene],
-                           trainer_factory: Callable[[], pl.Trainer], cache_dir: str | os.PathLike,
-                           key: str) -> tuple[ObjectDetector, dict]:
-    """The detector trained on ``scenes``, from ``<cache_dir>/detector_<key>.pt`` if present, else trained and
-    saved there (:func:`hrc_lab.cache.cached`: parallel jobs wait for the first). ``info``: train_seconds (of the
-    original training), cached, path."""
-    detector = ObjectDetector(cfg)
-    trained: list[float] = []
-
-    def train(partial: Path) -> None:
-        start = time.perf_counter()
-        detector.fit(scenes, trainer_factory())
-        trained.append(time.perf_counter() - start)
-        # tensors and plain values only (asdict of the config: lists, numbers, strings), so it loads weights-only
-        torch.save({"state_dict": detector.model.state_dict(), "config": asdict(cfg), "train_seconds": trained[0],
-                    "n_scenes": len(scenes)}, partial)
-
-    path = cached(Path(cache_dir) / f"detector_{key}.pt", train)
-    if trained:
-        return detector, {"train_seconds": trained[0], "cached": False, "path": str(path)}
-    seconds = _load_cached(path, detector)
-    return detector.eval(), {"train_seconds": seconds, "cached": True, "path": str(path)}
-
-
-def _load_cached(path: Path, detector: ObjectDetector) -> float:
-    """Load the weights :func:`load_or_train_detector` saved at ``path`` into ``detector``; the original training
-    time. :class:`DataFileError` when the file is unreadable or not such a checkpoint."""
-    saved = load_torch(path)
-    if not isinstance(saved, dict) or not {"state_dict", "train_seconds"} <= saved.keys():
-        raise DataFileError(f"{path}: not a detector checkpoint of hrc_lab (no 'state_dict' and 'train_seconds')")
-    load_weights(path, detector.model, saved["state_dict"])
-    return saved["train_seconds"]

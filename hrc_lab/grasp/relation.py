@@ -28,8 +28,8 @@ from torch_geometric.nn import GCNConv
 from hrc_lab.env.clutter import PART_TYPES
 from hrc_lab.grasp.configs import GraspSolverConfig
 from hrc_lab.grasp.observation import SceneNodes
-from hrc_lab.grasp.solver import NodeReading
-from hrc_lab.reasoning.module import StageDataModule
+from hrc_lab.grasp.solver import NodeReading, labelled_nodes
+from hrc_lab.training import FixedStepDataModule, SupervisedModule
 
 RELATIONS = ("none", "above", "under", "help")
 
@@ -79,21 +79,17 @@ class RelationNet(nn.Module):
         return self.head(h)
 
 
-class RelationModule(pl.LightningModule):
+def relation_objective(network: RelationNet, batch) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    """Cross-entropy of the relation classes on the labelled relation nodes."""
+    mask = batch.labelled
+    return F.cross_entropy(network(batch)[mask], batch.relation[mask]), {}
+
+
+class RelationModule(SupervisedModule):
+    """:func:`relation_objective` with Adam; logs ``train_loss`` per epoch, averaged over labelled nodes."""
+
     def __init__(self, network: RelationNet, lr: float) -> None:
-        super().__init__()
-        self.network = network
-        self.lr = lr
-
-    def training_step(self, batch, batch_idx: int) -> torch.Tensor:
-        logits = self.network(batch)
-        mask = batch.labelled
-        loss = F.cross_entropy(logits[mask], batch.relation[mask])
-        self.log("train_loss", loss, on_step=False, on_epoch=True, batch_size=int(mask.sum()))
-        return loss
-
-    def configure_optimizers(self):
-        return torch.optim.Adam(self.parameters(), lr=self.lr)
+        super().__init__(network, relation_objective, lr, batch_size=labelled_nodes)
 
 
 class RelationSolver:
@@ -148,7 +144,7 @@ class RelationSolver:
             raise ValueError("no training relations")
         torch.manual_seed(self.seed)
         self.network = RelationNet(graphs[0].x.shape[1], self.cfg)
-        data = StageDataModule(graphs, self.cfg.batch_size, self.cfg.steps_per_epoch)
+        data = FixedStepDataModule(graphs, self.cfg.batch_size, self.cfg.steps_per_epoch)
         trainer.fit(RelationModule(self.network, self.cfg.lr), datamodule=data)
 
     @torch.no_grad()

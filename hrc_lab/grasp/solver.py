@@ -33,7 +33,7 @@ from hrc_lab.env.clutter_rule import VOCABULARY
 from hrc_lab.grasp.configs import GraspSolverConfig
 from hrc_lab.grasp.graph import scene_graph
 from hrc_lab.grasp.observation import SceneNodes
-from hrc_lab.reasoning.module import StageDataModule
+from hrc_lab.training import FixedStepDataModule, SupervisedModule, binary_accuracy
 from hrc_lab.vocabulary import PAD, START, TokenVocabulary
 
 MAX_WORDS = 4  # "move b and c"
@@ -129,35 +129,31 @@ class GraspSolverNet(nn.Module):
         return torch.cat([gamma, F.one_hot(label, len(PART_TYPES)).float(), p_grasp.unsqueeze(-1)], dim=-1)
 
 
-class GraspSolverModule(pl.LightningModule):
-    """Binary cross-entropy on graspability (Eq. 6.3) plus the decoder's word cross-entropy, on labelled nodes."""
+def labelled_nodes(batch) -> int:
+    """The batch size the losses of the Ch.6 models are averaged over: their labelled nodes."""
+    return int(batch.labelled.sum())
+
+
+def solver_objective(network: GraspSolverNet, batch) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    """Binary cross-entropy on graspability (Eq. 6.3) plus the decoder's word cross-entropy, on labelled nodes; the
+    graspability accuracy."""
+    gamma, logits = network.encode(batch)
+    mask = batch.labelled
+    loss_grasp = F.binary_cross_entropy_with_logits(logits[mask], batch.graspable[mask])
+    f_prime = network.decoder_input(gamma, batch.label, torch.sigmoid(logits).detach())[mask]
+    words = network.decoder(f_prime, batch.solution[mask])
+    pad = network.decoder.vocab.index[PAD]
+    loss_text = F.cross_entropy(words.flatten(0, 1), batch.solution[mask].flatten(), ignore_index=pad)
+    accuracy = binary_accuracy(logits[mask] > 0, batch.graspable[mask] > 0.5)
+    return loss_grasp + loss_text, {"loss_grasp": loss_grasp, "loss_text": loss_text, "grasp_acc": accuracy}
+
+
+class GraspSolverModule(SupervisedModule):
+    """:func:`solver_objective` with Adam; logs ``train_loss``, ``train_loss_grasp``, ``train_loss_text`` and
+    ``train_grasp_acc`` per epoch, averaged over labelled nodes."""
 
     def __init__(self, network: GraspSolverNet, lr: float) -> None:
-        super().__init__()
-        self.network = network
-        self.lr = lr
-
-    def training_step(self, batch, batch_idx: int) -> torch.Tensor:
-        gamma, logits = self.network.encode(batch)
-        mask = batch.labelled
-        loss_grasp = F.binary_cross_entropy_with_logits(logits[mask], batch.graspable[mask])
-        f_prime = self.network.decoder_input(gamma, batch.label, torch.sigmoid(logits).detach())[mask]
-        words = self.network.decoder(f_prime, batch.solution[mask])
-        pad = self.network.decoder.vocab.index[PAD]
-        loss_text = F.cross_entropy(words.flatten(0, 1), batch.solution[mask].flatten(), ignore_index=pad)
-        accuracy = ((logits[mask] > 0) == (batch.graspable[mask] > 0.5)).float().mean()
-        n = int(mask.sum())
-        self.log_dict(
-            {"train_loss": loss_grasp + loss_text, "train_loss_grasp": loss_grasp, "train_loss_text": loss_text},
-            on_step=False,
-            on_epoch=True,
-            batch_size=n,
-        )
-        self.log("train_grasp_acc", accuracy, on_step=False, on_epoch=True, batch_size=n)
-        return loss_grasp + loss_text
-
-    def configure_optimizers(self):
-        return torch.optim.Adam(self.parameters(), lr=self.lr)
+        super().__init__(network, solver_objective, lr, batch_size=labelled_nodes)
 
 
 @dataclass
@@ -215,7 +211,7 @@ class GraspSolver:
             raise ValueError("no training graphs")
         torch.manual_seed(self.seed)
         self.network = GraspSolverNet(graphs[0].x.shape[1], self.vocab, self.cfg)
-        data = StageDataModule(graphs, self.cfg.batch_size, self.cfg.steps_per_epoch)
+        data = FixedStepDataModule(graphs, self.cfg.batch_size, self.cfg.steps_per_epoch)
         trainer.fit(GraspSolverModule(self.network, self.cfg.lr), datamodule=data)
 
     @torch.no_grad()

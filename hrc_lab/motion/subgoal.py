@@ -11,7 +11,7 @@ import torch.nn.functional as F
 
 from hrc_lab.motion.configs import NDPConfig, SubgoalConfig
 from hrc_lab.motion.networks import FullObservationActor, NeuralDynamicPlanner, TaskConditionedVI, variational_loss
-from hrc_lab.motion.training import fit
+from hrc_lab.training import accuracy, fit_tensors
 
 
 class Standardiser:
@@ -91,16 +91,18 @@ class SubgoalPlanner:
         self.network = TaskConditionedVI(x.shape[1], onehot.shape[1], cfg.hidden, subgoals.shape[1], cfg.use_labels,
                                          stochastic=cfg.kind == "vi")
         if cfg.kind == "vi":
-            def objective(net, xb, lb, sb):
+            def objective(net, batch):
+                xb, lb, sb = batch
                 mean, std = net(xb, lb)
                 loss, nll, kl = variational_loss(mean, std, sb, cfg.likelihood_std, cfg.kl_weight)
-                return loss, {"train_nll": nll, "train_kl": kl}
+                return loss, {"nll": nll, "kl": kl}
         else:
-            def objective(net, xb, lb, sb):
+            def objective(net, batch):
+                xb, lb, sb = batch
                 mean, _ = net(xb, lb)
                 return F.mse_loss(mean, sb), {}
-        fit(self.network, objective, [_tensor(xs), _tensor(onehot), _tensor(target)], cfg.lr, cfg.steps,
-            cfg.batch_size, trainer_factory)
+        fit_tensors(self.network, objective, [_tensor(xs), _tensor(onehot), _tensor(target)], cfg.lr, cfg.steps,
+                    cfg.batch_size, trainer_factory)
         return self
 
     def predict(self, x: np.ndarray, labels: np.ndarray,
@@ -159,15 +161,16 @@ class DynamicPlanner:
         if cfg.mode == "direction" and not self.full_observation:
             target = torch.as_tensor(np.sign(actions) * (np.abs(actions) > 0.2 * self.max_step) + 1, dtype=torch.long)
 
-            def objective(net, xb, yb):
-                logits = net(xb)
-                return F.cross_entropy(logits.reshape(-1, 3), yb.reshape(-1)), {}
+            def objective(net, batch):
+                xb, yb = batch
+                return F.cross_entropy(net(xb).reshape(-1, 3), yb.reshape(-1)), {}
         else:
             target = _tensor(actions / self.max_step)
 
-            def objective(net, xb, yb):
+            def objective(net, batch):
+                xb, yb = batch
                 return 0.5 * ((net(xb) - yb) ** 2).sum(-1).mean(), {}  # Eq. 3.5
-        fit(self.network, objective, [inputs, target], cfg.lr, cfg.steps, cfg.batch_size, trainer_factory)
+        fit_tensors(self.network, objective, [inputs, target], cfg.lr, cfg.steps, cfg.batch_size, trainer_factory)
         return self
 
     def act(self, r: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -200,12 +203,13 @@ class StageClassifier:
         self.scale = Standardiser(x)
         self.network = TaskClassifier(x.shape[1], self.n_labels, self.hidden)
 
-        def objective(net, xb, yb):
+        def objective(net, batch):
+            xb, yb = batch
             logits = net(xb)
-            return F.cross_entropy(logits, yb), {"train_acc": (logits.argmax(-1) == yb).float().mean()}
+            return F.cross_entropy(logits, yb), {"acc": accuracy(logits, yb)}
 
-        fit(self.network, objective, [_tensor(self.scale(x)), torch.as_tensor(labels, dtype=torch.long)], self.lr,
-            self.steps, self.batch_size, trainer_factory)
+        tensors = [_tensor(self.scale(x)), torch.as_tensor(labels, dtype=torch.long)]
+        fit_tensors(self.network, objective, tensors, self.lr, self.steps, self.batch_size, trainer_factory)
         return self
 
     def __call__(self, x: np.ndarray) -> np.ndarray:

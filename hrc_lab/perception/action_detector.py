@@ -18,6 +18,7 @@ from torch.utils.data import DataLoader, Dataset
 
 from hrc_lab.perception.configs import ActionDetectorConfig
 from hrc_lab.perception.networks import ActionDetectorNet
+from hrc_lab.training import ValidatedModule, accuracy
 
 # Training-time augmentation (cfg.augment): one random affine and brightness per window, on the crop and on every
 # frame alike, and independent noise on every track point.
@@ -102,9 +103,17 @@ class ActionWindows(Dataset):
         return item
 
 
-class ActionDetector(pl.LightningModule):
-    """The detector's network trained with softmax cross-entropy (Eq. 5.3, see the module docstring) and AdamW;
-    logs ``train_loss``/``train_acc`` and ``val_loss``/``val_acc`` per epoch."""
+def action_objective(network: nn.Module, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict]:
+    """Softmax cross-entropy of the actions (Eq. 5.3, see the module docstring) and the accuracy."""
+    logits = network(batch)
+    return F.cross_entropy(logits, batch["label"]), {"acc": accuracy(logits, batch["label"])}
+
+
+class ActionDetector(nn.Module):
+    """The action detector: its :class:`~hrc_lab.perception.networks.ActionDetectorNet` (``network``), trained by
+    ``fit`` as a :class:`~hrc_lab.training.ValidatedModule` of :func:`action_objective` with AdamW (logs
+    ``train_loss``/``train_acc`` and ``val_loss``/``val_acc`` per epoch), and read by ``predict_proba`` and
+    ``classify``."""
 
     def __init__(self, cfg: ActionDetectorConfig, n_classes: int, seed: int = 0) -> None:
         super().__init__()
@@ -117,23 +126,6 @@ class ActionDetector(pl.LightningModule):
     def forward(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
         return self.network(batch)
 
-    def _step(self, batch: dict[str, torch.Tensor], stage: str) -> torch.Tensor:
-        logits = self(batch)
-        loss = F.cross_entropy(logits, batch["label"])
-        accuracy = (logits.argmax(-1) == batch["label"]).float().mean()
-        n = len(batch["label"])
-        self.log_dict({f"{stage}_loss": loss, f"{stage}_acc": accuracy}, on_step=False, on_epoch=True, batch_size=n)
-        return loss
-
-    def training_step(self, batch: dict[str, torch.Tensor], batch_idx: int) -> torch.Tensor:
-        return self._step(batch, "train")
-
-    def validation_step(self, batch: dict[str, torch.Tensor], batch_idx: int) -> None:
-        self._step(batch, "val")
-
-    def configure_optimizers(self):
-        return torch.optim.AdamW(self.parameters(), lr=self.cfg.lr, weight_decay=self.cfg.weight_decay)
-
     def fit(self, train: ActionWindows, trainer: pl.Trainer, val: ActionWindows | None = None) -> ActionDetector:
         """Train for the Trainer's ``max_epochs`` (protocols build it with ``max_epochs=cfg.epochs``) on shuffled
         batches of ``cfg.batch_size``; shuffling, dropout and augmentation are seeded from ``seed``."""
@@ -141,7 +133,8 @@ class ActionDetector(pl.LightningModule):
         shuffle = torch.Generator().manual_seed(self.seed)
         loader = DataLoader(train, batch_size=self.cfg.batch_size, shuffle=True, generator=shuffle, num_workers=0)
         val_loader = None if val is None else DataLoader(val, batch_size=self.cfg.batch_size, num_workers=0)
-        trainer.fit(self, loader, val_loader)
+        module = ValidatedModule(self.network, action_objective, self.cfg.lr, self.cfg.weight_decay, "adamw")
+        trainer.fit(module, loader, val_loader)
         self._recalibrate_batch_norm(loader)
         return self
 

@@ -69,11 +69,13 @@ class TorchReasoner(Reasoner):
     def encode(self, obs: StageObservation) -> Data: ...
 
     def fit(self, observations: list[StageObservation], trainer: pl.Trainer | None) -> None:
-        from hrc_lab.reasoning.module import ReasoningModule, StageDataModule
+        from hrc_lab.reasoning.module import ReasoningModule
+        from hrc_lab.training import FixedStepDataModule
 
         if trainer is None:
             raise ValueError(f"{type(self).__name__} is trained by Lightning and needs a trainer")
-        data = StageDataModule([self.encode(o) for o in observations], self.cfg.batch_size, self.cfg.steps_per_epoch)
+        samples = [self.encode(o) for o in observations]
+        data = FixedStepDataModule(samples, self.cfg.batch_size, self.cfg.steps_per_epoch)
         trainer.fit(ReasoningModule(self.network, lr=self.cfg.lr), datamodule=data)
 
     @torch.no_grad()

@@ -35,7 +35,7 @@ from hrc_lab.env.assemble_to_order import (
 )
 from hrc_lab.reasoning.chain_sage import SAGEStack
 from hrc_lab.reasoning.configs import SemanticPlannerConfig
-from hrc_lab.reasoning.module import StageDataModule
+from hrc_lab.training import FixedStepDataModule, SupervisedModule
 from hrc_lab.vocabulary import PAD, START, TokenVocabulary
 
 
@@ -121,30 +121,23 @@ class SemanticPlannerNet(nn.Module):
         return torch.stack(out, dim=1)
 
 
-class SemanticPlannerModule(pl.LightningModule):
+def planner_objective(network: SemanticPlannerNet, batch) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """Eq. 5.8 (goal and next-object cross-entropy) plus the decoder's word cross-entropy."""
+    gamma_o, logits_goal, logits_next, p_goal = network.encode(batch)
+    words = network.caption_logits(torch.cat([gamma_o, p_goal], dim=-1), batch.captions)
+    loss_goal = F.cross_entropy(logits_goal, batch.goal)
+    loss_next = F.cross_entropy(logits_next, batch.next)
+    pad = network.vocab.index[PAD]
+    loss_text = F.cross_entropy(words.flatten(0, 1), batch.captions.flatten(), ignore_index=pad)
+    loss = loss_goal + loss_next + loss_text
+    return loss, {"loss_goal": loss_goal, "loss_next": loss_next, "loss_text": loss_text}
+
+
+class SemanticPlannerModule(SupervisedModule):
+    """:func:`planner_objective` with Adam; logs ``train_loss`` and ``train_loss_{goal,next,text}`` per epoch."""
 
     def __init__(self, network: SemanticPlannerNet, lr: float) -> None:
-        super().__init__()
-        self.network = network
-        self.lr = lr
-
-    def training_step(self, batch, batch_idx: int) -> torch.Tensor:
-        gamma_o, logits_goal, logits_next, p_goal = self.network.encode(batch)
-        words = self.network.caption_logits(torch.cat([gamma_o, p_goal], dim=-1), batch.captions)
-        loss_goal = F.cross_entropy(logits_goal, batch.goal)
-        loss_next = F.cross_entropy(logits_next, batch.next)
-        pad = self.network.vocab.index[PAD]
-        loss_text = F.cross_entropy(words.flatten(0, 1), batch.captions.flatten(), ignore_index=pad)
-        loss = loss_goal + loss_next + loss_text
-        metrics = {"train_loss": loss, "train_loss_goal": loss_goal, "train_loss_next": loss_next}
-        self.log_dict(
-            metrics | {"train_loss_text": loss_text}, on_step=False, on_epoch=True, batch_size=len(batch.goal)
-        )
-        return loss
-
-    def configure_optimizers(self):
-        return torch.optim.Adam(self.parameters(), lr=self.lr)
+        super().__init__(network, planner_objective, lr)
 
 
 @dataclass
@@ -171,7 +164,7 @@ class SemanticPlanner:
 
     def fit(self, scenarios: list[Scenario], trainer: pl.Trainer) -> None:
         samples = [scenario_graph(self.spec, s, self.vocab) for s in scenarios]
-        data = StageDataModule(samples, self.cfg.batch_size, self.cfg.steps_per_epoch)
+        data = FixedStepDataModule(samples, self.cfg.batch_size, self.cfg.steps_per_epoch)
         trainer.fit(SemanticPlannerModule(self.network, self.cfg.lr), datamodule=data)
 
     @torch.no_grad()
