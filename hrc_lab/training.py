@@ -67,10 +67,18 @@ class RunCheckpoint(ModelCheckpoint):
         super()._save_checkpoint(trainer, filepath)
         self.upload(Path(filepath))
 
+    def load_state_dict(self, state_dict: dict[str, Any]) -> None:
+        """Nothing to restore: no best model is tracked, and a resumed run writes its own ``last.ckpt`` (Lightning's
+        restore would warn that the folder changed, which it always does on resume)."""
+
 
 class RandomState(Callback):
-    """Stores torch's, NumPy's and Python's global generator states in every checkpoint and restores them on
-    resume, so a resumed fit samples the same batches (``RandomSampler``) and dropout masks."""
+    """Stores the random generators' states in every checkpoint and restores them on resume, so a resumed fit
+    samples the same batches and dropout masks as an uninterrupted one: torch's, NumPy's and Python's global
+    generators, and the generator of the training loader's sampler when it has its own (a seeded shuffle)."""
+
+    def __init__(self) -> None:
+        self._sampler_state: torch.Tensor | None = None
 
     def state_dict(self) -> dict[str, Any]:
         kind, keys, pos, has_gauss, cached = np.random.get_state()
@@ -85,6 +93,25 @@ class RandomState(Callback):
         kind, keys, pos, has_gauss, cached = state_dict["numpy"]
         np.random.set_state((kind, keys.numpy().astype(np.uint32), pos, has_gauss, cached))
         random.setstate(state_dict["python"])
+
+    def on_save_checkpoint(self, trainer: pl.Trainer, pl_module: pl.LightningModule, checkpoint: dict) -> None:
+        generator = _sampler_generator(trainer)
+        if generator is not None:
+            checkpoint["sampler_generator"] = generator.get_state()
+
+    def on_load_checkpoint(self, trainer: pl.Trainer, pl_module: pl.LightningModule, checkpoint: dict) -> None:
+        self._sampler_state = checkpoint.get("sampler_generator")  # the loader does not exist yet
+
+    def on_train_epoch_start(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
+        if self._sampler_state is not None:
+            _sampler_generator(trainer).set_state(self._sampler_state)
+            self._sampler_state = None
+
+
+def _sampler_generator(trainer: pl.Trainer) -> torch.Generator | None:
+    """The generator of the training loader's sampler (or of the loader), when it has its own."""
+    loader = trainer.train_dataloader
+    return getattr(getattr(loader, "sampler", None), "generator", None) or getattr(loader, "generator", None)
 
 
 # --- what every model trains with ---------------------------------------------------------------------------------

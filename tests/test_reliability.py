@@ -99,8 +99,9 @@ def test_stale_marks_runs_whose_process_is_gone(tmp_path):
     assert elsewhere in dict(stale(uri, dry_run=False, other_hosts_hours=0.0))
 
 
-def _fit(checkpoints: Path, max_epochs: int, resume: Path | None = None) -> torch.Tensor:
-    """A small network with dropout, trained from a fixed seed; returns its final weights."""
+def _fit(checkpoints: Path, max_epochs: int, resume: Path | None = None, own_generator: bool = False) -> torch.Tensor:
+    """A small network with dropout, trained from a fixed seed; returns its final weights. ``own_generator``: the
+    batches come from a seeded generator of the data's (as the Ch.6 detector's), not from torch's global one."""
     pl.seed_everything(0, verbose=False)
     network = torch.nn.Sequential(torch.nn.Linear(3, 16), torch.nn.Dropout(0.3), torch.nn.Linear(16, 1))
     data = [torch.randn(64, 3), torch.randn(64, 1)]
@@ -109,19 +110,21 @@ def _fit(checkpoints: Path, max_epochs: int, resume: Path | None = None) -> torc
     callbacks = [RandomState(), RunCheckpoint(checkpoints, 1, uploaded.append)]
     trainer = Trainer(max_epochs=max_epochs, logger=False, callbacks=callbacks, enable_progress_bar=False,
                       enable_model_summary=False, deterministic=True, resume_checkpoint=resume)
-    trainer.fit(module, datamodule=FixedStepDataModule(TensorDataset(*data), 8, 5))
+    generator = torch.Generator().manual_seed(7) if own_generator else None
+    trainer.fit(module, datamodule=FixedStepDataModule(TensorDataset(*data), 8, 5, generator=generator))
     assert uploaded and uploaded[-1].name == "last.ckpt"
     return torch.cat([p.detach().flatten() for p in network.parameters()])
 
 
-def test_a_resumed_fit_ends_where_an_uninterrupted_one_does(tmp_path):
+@pytest.mark.parametrize("own_generator", [False, True])
+def test_a_resumed_fit_ends_where_an_uninterrupted_one_does(tmp_path, own_generator):
     """Stop after 2 of 5 epochs, resume from its checkpoint: same weights as 5 epochs straight (the checkpoint
     carries the generators' states, so the resumed epochs draw the same batches and dropout masks)."""
-    straight = _fit(tmp_path / "straight", 5)
-    _fit(tmp_path / "interrupted", 2)
-    resumed = _fit(tmp_path / "resumed", 5, resume=tmp_path / "interrupted" / "last.ckpt")
+    straight = _fit(tmp_path / "straight", 5, own_generator=own_generator)
+    _fit(tmp_path / "interrupted", 2, own_generator=own_generator)
+    resumed = _fit(tmp_path / "resumed", 5, resume=tmp_path / "interrupted" / "last.ckpt", own_generator=own_generator)
     assert torch.equal(straight, resumed)
-    assert not torch.equal(straight, _fit(tmp_path / "short", 2))
+    assert not torch.equal(straight, _fit(tmp_path / "short", 2, own_generator=own_generator))
 
 
 def test_variant_names_overrides_beyond_the_sweep_keys():
