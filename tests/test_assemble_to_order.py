@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from hrc_lab.env.assemble_to_order import (
+from hrc_lab.env.assembly.spec import (
     FETCH,
     SCREW,
     TRANSPORT,

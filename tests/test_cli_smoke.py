@@ -5,7 +5,7 @@ import pytest
 
 from hrc_lab.registry import ConfigError
 
-TINY = ["trainer.max_epochs=1", "reasoning.steps_per_epoch=5", "protocol.min_demos=10"]
+TINY = ["trainer.max_epochs=1", "reasoning.steps=5", "protocol.min_demos=10"]
 
 
 def test_single_run_lands_as_a_named_tagged_run(run_job, base_run_name):

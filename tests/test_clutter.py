@@ -5,8 +5,7 @@ import pytest
 
 import hrc_lab.config  # noqa: F401  (stores the schemas that conf/env/clutter.yaml extends)
 from hrc_lab.env import ENVS
-from hrc_lab.env.clutter import ClutterObject, ClutterScene, ClutterSpec
-from hrc_lab.env.clutter_rule import (
+from hrc_lab.env.clutter.rule import (
     VOCABULARY,
     blockers,
     boxes_intersect,
@@ -16,6 +15,7 @@ from hrc_lab.env.clutter_rule import (
     resolve_request,
     solution_tokens,
 )
+from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene, ClutterSpec
 from hrc_lab.registry import ConfigError
 
 SPEC = ClutterSpec()
@@ -114,7 +114,7 @@ def test_config_matches_the_defaults_and_errors_name_the_key(compose_config):
 
 
 def test_a_generated_scene_is_deterministic_and_consistent(tmp_path):
-    from hrc_lab.env.clutter_scene import generate_scene, load_scenes, save_scenes
+    from hrc_lab.env.clutter.scenes import generate_scene, load_scenes, save_scenes
 
     spec = ClutterSpec(image_size=64)
     first, again = generate_scene(spec, 3), generate_scene(spec, 3)
@@ -138,7 +138,7 @@ def test_every_scene_size_the_env_allows_is_drawn():
     env.max_counts): the counts per type add up to it within max_counts, and the scene has that many parts."""
     from dataclasses import replace
 
-    from hrc_lab.env.clutter_scene import _counts, generate_scene
+    from hrc_lab.env.clutter.scenes import _counts, generate_scene
 
     spec = ClutterSpec(image_size=64, max_counts={"a": 4, "b": 2, "c": 1})
     rng = np.random.default_rng(0)

@@ -6,8 +6,8 @@ import pytest
 
 from hrc_lab.data.demos import DemoWriter, read_demos
 from hrc_lab.data.segmentation import PICK, PLACE, agreement, detect_stages, resample, stage_labels, stage_subgoals
-from hrc_lab.env.sim import ErrorCorrection
-from hrc_lab.env.sim.expert import ScriptedExpert
+from hrc_lab.env.robot.correction_cell import ErrorCorrection
+from hrc_lab.env.robot.expert import ScriptedExpert
 from hrc_lab.experiments.collect import record_episode
 
 

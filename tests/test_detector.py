@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from hrc_lab.env.clutter import ClutterObject, ClutterScene
+from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene
 from hrc_lab.grasp.detector import (
     Detections,
     DetectorConfig,

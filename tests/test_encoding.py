@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from hrc_lab.env.package_to_order import PackageToOrderSpec, sample_episode, stage_observations
+from hrc_lab.env.robot.spec import PackageToOrderSpec, sample_episode, stage_observations
 from hrc_lab.reasoning.encoding import (
     POSITION_SCALE,
     chain_graph,

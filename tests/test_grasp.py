@@ -8,8 +8,8 @@ from omegaconf import OmegaConf
 from torch_geometric.loader import DataLoader
 
 from hrc_lab.config import validate_config
-from hrc_lab.env.clutter import ClutterObject, ClutterScene
-from hrc_lab.env.clutter_rule import solution_types
+from hrc_lab.env.clutter.rule import solution_types
+from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene
 from hrc_lab.grasp import GRASPS
 from hrc_lab.grasp.configs import GraspSolverConfig
 from hrc_lab.grasp.graph import edge_weights, fully_connected, scene_graph
@@ -198,7 +198,7 @@ def test_relation_filter_and_labels_of_gvmrn_rf():
     assert graph.labelled.tolist() == [pair[0] in (0, 2) for pair in pairs]  # relations of the requested a's only
 
 
-TINY_CH6 = ["hydra.mode=RUN", "trainer.max_epochs=1", "grasp.steps_per_epoch=2", "grasp.detector.steps=2",
+TINY_CH6 = ["hydra.mode=RUN", "trainer.max_epochs=1", "grasp.steps=2", "grasp.detector.steps=2",
             "grasp.detector.width=4", "grasp.detector.fpn_channels=8", "grasp.detector.representation_size=16",
             "protocol.train_images=4"]
 

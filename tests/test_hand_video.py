@@ -7,9 +7,9 @@ import cv2
 import numpy as np
 import pytest
 
-from hrc_lab.env.assemble_to_order import SCREW, AssembleToOrderSpec, AssemblyVideoSpec, Scenario, action_labels
-from hrc_lab.env.assembly_video import Layout, render_action_clip, render_session, session_script
-from hrc_lab.env.hand_drawing import SKIN_TONES, HandPose, draw_hand, landmark_points
+from hrc_lab.env.assembly.hand_drawing import SKIN_TONES, HandPose, draw_hand, landmark_points
+from hrc_lab.env.assembly.spec import SCREW, AssembleToOrderSpec, AssemblyVideoSpec, Scenario, action_labels
+from hrc_lab.env.assembly.video import Layout, render_action_clip, render_session, session_script
 from hrc_lab.experiments.ch5_perception import checkpoints, segments_of
 from hrc_lab.perception.configs import ActionDetectorConfig
 from hrc_lab.perception.hand_tracking import HandTracker
@@ -130,7 +130,7 @@ class TruthPlanner:
         self.spec, self.goal = spec, goal
 
     def plan(self, pairs_list):
-        from hrc_lab.env.assemble_to_order import next_object, plan_tokens
+        from hrc_lab.env.assembly.spec import next_object, plan_tokens
 
         out = []
         for pairs in pairs_list:

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import torch
 
-from hrc_lab.env.settings import ErrorCorrectionConfig, PackageToOrderConfig
-from hrc_lab.env.sim import make_env
+from hrc_lab.env.robot.factory import make_env
+from hrc_lab.env.robot.settings import ErrorCorrectionConfig, PackageToOrderConfig
 from hrc_lab.motion.configs import STAGE_STARTS, NDPConfig, SubgoalConfig
 from hrc_lab.motion.networks import NeuralDynamicPlanner, TaskConditionedVI, variational_loss
 from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier, base_frame, build_subgoal_planner, jitter_r
@@ -87,7 +87,7 @@ def tiny_trainer() -> pl.Trainer:
 
 def expert_demos(env, n: int, **segmentation):
     from hrc_lab.data.segmentation import stage_subgoals
-    from hrc_lab.env.sim.expert import ScriptedExpert
+    from hrc_lab.env.robot.expert import ScriptedExpert
     from hrc_lab.experiments.collect import record_episode
 
     expert, demos = ScriptedExpert(env), []

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from hrc_lab.env.package_to_order import (
+from hrc_lab.env.robot.spec import (
     PICK,
     PLACE,
     PackageToOrderSpec,

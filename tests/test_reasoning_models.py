@@ -3,7 +3,7 @@ import pytest
 import torch
 from torch_geometric.loader import DataLoader
 
-from hrc_lab.env.package_to_order import PackageToOrderSpec, goal_configurations, sample_episode, stage_observations
+from hrc_lab.env.robot.spec import PackageToOrderSpec, goal_configurations, sample_episode, stage_observations
 from hrc_lab.experiments.ch4_reasoning import evaluate
 from hrc_lab.reasoning import REASONERS
 from hrc_lab.reasoning.module import ReasoningModule

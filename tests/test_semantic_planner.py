@@ -2,7 +2,7 @@ import pytest
 import torch
 from torch_geometric.loader import DataLoader
 
-from hrc_lab.env.assemble_to_order import SCREW, AssembleToOrderSpec, Scenario, scenarios
+from hrc_lab.env.assembly.spec import SCREW, AssembleToOrderSpec, Scenario, scenarios
 from hrc_lab.reasoning import REASONERS
 from hrc_lab.reasoning.hrc_loop import SemanticPlannerLoop
 from hrc_lab.reasoning.semantic_planner import (

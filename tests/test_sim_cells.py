@@ -3,10 +3,12 @@
 import numpy as np
 import pytest
 
-from hrc_lab.env.package_to_order import PackageToOrderSpec
-from hrc_lab.env.settings import ErrorCorrectionConfig, PackageToOrderConfig, SimSettings
-from hrc_lab.env.sim import ErrorCorrection, PackageToOrder, make_env
-from hrc_lab.env.sim.expert import ScriptedExpert, run_episode
+from hrc_lab.env.robot.correction_cell import ErrorCorrection
+from hrc_lab.env.robot.expert import ScriptedExpert, run_episode
+from hrc_lab.env.robot.factory import make_env
+from hrc_lab.env.robot.package_cell import PackageToOrder
+from hrc_lab.env.robot.settings import ErrorCorrectionConfig, PackageToOrderConfig, SimSettings
+from hrc_lab.env.robot.spec import PackageToOrderSpec
 
 SPEC_2OF3 = PackageToOrderSpec(n_objects=3, n_selected=2)
 
@@ -142,7 +144,7 @@ def test_make_env_from_configs():
 def test_placement_noise_moves_the_experts_placing_stage_and_only_it(ec):
     """With placement_noise the expert aims its whole placing stage at one point around the goal (x-y only), drawn
     from its own generator (the scene's is untouched); without it, at the goal; picking is unaffected."""
-    from hrc_lab.env.sim.cell import PICK, PLACE
+    from hrc_lab.env.robot.cell import PICK, PLACE
 
     ec.reset()
     obj = ec.plan[0]

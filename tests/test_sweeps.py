@@ -8,7 +8,7 @@ import subprocess
 import pytest
 from mlflow.tracking import MlflowClient
 
-TINY = ["trainer.max_epochs=1", "reasoning.steps_per_epoch=5", "protocol.min_demos=10"]
+TINY = ["trainer.max_epochs=1", "reasoning.steps=5", "protocol.min_demos=10"]
 
 
 @pytest.fixture(scope="module")

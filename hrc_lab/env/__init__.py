@@ -1,21 +1,28 @@
 """Environments and task specifications; ``conf/env/<file>.yaml`` selects one by ``name``.
 
-The task specs and config schemas here import no simulator; the robosuite cells live in :mod:`hrc_lab.env.sim`
-(imported on demand, it registers ``PackageToOrder`` and ``ErrorCorrection`` with robosuite), the Ch.6 clutter
-scenes in :mod:`hrc_lab.env.clutter_scene` (pure MuJoCo, imported on demand).
+One subpackage per world, each with its spec, simulator and data generation:
+
+- :mod:`hrc_lab.env.robot`: the Ch.3/Ch.4 robot cells (package-to-order spec, config schemas, robosuite cells);
+- :mod:`hrc_lab.env.assembly`: the Ch.5 assemble-to-order domain and its generated hand videos;
+- :mod:`hrc_lab.env.clutter`: the Ch.6 clutter scenes and their labelling rule.
+
+The specs and config schemas imported here import no simulator; the robosuite cells
+(:mod:`hrc_lab.env.robot.factory`, it registers ``PackageToOrder`` and ``ErrorCorrection`` with robosuite), the
+clutter scenes (:mod:`hrc_lab.env.clutter.scenes`, pure MuJoCo) and the videos (:mod:`hrc_lab.env.assembly.video`,
+OpenCV) are imported on demand.
 """
 
-from hrc_lab.env.assemble_to_order import AssembleToOrderSpec
-from hrc_lab.env.clutter import ClutterSpec
-from hrc_lab.env.package_to_order import PackageToOrderSpec
-from hrc_lab.env.settings import ErrorCorrectionConfig, PackageToOrderConfig, SimSettings
+from hrc_lab.env.assembly.spec import AssembleToOrderSpec
+from hrc_lab.env.clutter.spec import ClutterSpec
+from hrc_lab.env.robot.settings import ErrorCorrectionConfig, PackageToOrderConfig, SimSettings
+from hrc_lab.env.robot.spec import PackageToOrderSpec
 from hrc_lab.registry import Registry
 
 ENVS = Registry("env")
 # ENVS.build(cfg, seed=...) makes the robosuite cell of a robot env; the Ch.5 assembly domain and the Ch.6 clutter
 # scenes are specifications that their protocols' generators read (nothing to build).
-ENVS.register("package_to_order", PackageToOrderConfig, "hrc_lab.env.sim.factory:make_env")
-ENVS.register("error_correction", ErrorCorrectionConfig, "hrc_lab.env.sim.factory:make_env")
+ENVS.register("package_to_order", PackageToOrderConfig, "hrc_lab.env.robot.factory:make_env")
+ENVS.register("error_correction", ErrorCorrectionConfig, "hrc_lab.env.robot.factory:make_env")
 ENVS.register("assemble_to_order", AssembleToOrderSpec)
 ENVS.register("clutter", ClutterSpec)
 

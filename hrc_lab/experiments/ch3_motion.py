@@ -19,7 +19,7 @@ def correction_demos(env, n: int, protocol, desc: str, placement_noise: float = 
     """Expert demonstrations with their change-point stages and ``protocol.subgoals_per_stage`` re-sampled
     sub-goals per stage (3.3); the expert aims its placements with ``placement_noise`` (m) drawn from ``rng``."""
     from hrc_lab.data.segmentation import stage_subgoals
-    from hrc_lab.env.sim.expert import ScriptedExpert
+    from hrc_lab.env.robot.expert import ScriptedExpert
     from hrc_lab.experiments.collect import record_episode
 
     expert, demos = ScriptedExpert(env, placement_noise=placement_noise, rng=rng), []

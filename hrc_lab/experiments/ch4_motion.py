@@ -12,7 +12,7 @@ from sklearn.model_selection import GroupKFold
 from tqdm import tqdm
 
 from hrc_lab.env import ENVS
-from hrc_lab.env.package_to_order import combinations
+from hrc_lab.env.robot.spec import combinations
 from hrc_lab.experiments.context import RunContext
 from hrc_lab.motion import MOTIONS
 
@@ -24,7 +24,7 @@ def fixed_goal_configurations(spec) -> list:
 
 
 def collect_demos(env, n: int, desc: str) -> list:
-    from hrc_lab.env.sim.expert import ScriptedExpert
+    from hrc_lab.env.robot.expert import ScriptedExpert
     from hrc_lab.experiments.collect import record_episode
 
     expert = ScriptedExpert(env)

@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from hrc_lab.env.package_to_order import (
+from hrc_lab.env.robot.spec import (
     Episode,
     PackageToOrderSpec,
     combinations,

@@ -24,7 +24,7 @@ from tqdm import tqdm
 
 from hrc_lab.cache import cache_key, cached
 from hrc_lab.data.files import DataFileError, existing_file, load_torch, load_weights
-from hrc_lab.env.assemble_to_order import (
+from hrc_lab.env.assembly.spec import (
     SCREW,
     AssembleToOrderSpec,
     Scenario,
@@ -34,7 +34,7 @@ from hrc_lab.env.assemble_to_order import (
     plan_tokens,
     scenarios,
 )
-from hrc_lab.env.assembly_video import Clip, SessionStep, render_action_clip, render_session
+from hrc_lab.env.assembly.video import Clip, SessionStep, render_action_clip, render_session
 from hrc_lab.experiments.ch5_planner import train_planner
 from hrc_lab.experiments.context import RunContext
 from hrc_lab.perception import PERCEPTIONS
@@ -109,7 +109,7 @@ def stratified_split(labels: np.ndarray, fraction: float, rng: np.random.Generat
 def train_detector(ctx: RunContext, data: ActionSet, seed: int, prefix: str) -> ActionDetector:
     cfg = ctx.cfg.perception
     detector = PERCEPTIONS.build(cfg, n_classes=len(data.names), seed=seed)
-    return detector.fit(windows(cfg, data, train=True), ctx.trainer(prefix, max_epochs=cfg.epochs))
+    return detector.fit(windows(cfg, data, train=True), ctx.trainer(prefix))
 
 
 def shared_detector(ctx: RunContext, data: ActionSet) -> ActionDetector:

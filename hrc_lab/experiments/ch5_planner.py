@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from hrc_lab.env.assemble_to_order import (
+from hrc_lab.env.assembly.spec import (
     SCREW,
     AssembleToOrderSpec,
     HumanWorker,

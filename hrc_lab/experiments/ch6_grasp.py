@@ -17,7 +17,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from hrc_lab.cache import cache_key, cached
-from hrc_lab.env.clutter import ClutterScene, ClutterSpec
+from hrc_lab.env.clutter.spec import ClutterScene, ClutterSpec
 from hrc_lab.experiments.context import RunContext
 from hrc_lab.grasp import GRASPS
 from hrc_lab.grasp.detector import detection_quality
@@ -30,7 +30,7 @@ TRAIN, TEST, ITERATIVE = 1, 2, 3  # scene-seed streams
 
 
 def scene_set(ctx: RunContext, spec: ClutterSpec, stream: int, count: int) -> list[ClutterScene]:
-    from hrc_lab.env.clutter_scene import generate_scenes, load_scenes, save_scenes
+    from hrc_lab.env.clutter.scenes import generate_scenes, load_scenes, save_scenes
 
     seeds = [ctx.cfg.protocol.data_seed * 1_000_000 + stream * 100_000 + i for i in range(count)]
     key = cache_key([asdict(spec), seeds[0], count])

@@ -98,7 +98,7 @@ def segment(demo, label_of, protocol) -> float:
 def collect(ctx: RunContext) -> dict[str, float]:
     """Expert demonstrations of one scenario into ``<paths.runs_dir>/data/<scenario>.hdf5`` (or protocol.output)."""
     from hrc_lab.data.demos import DemoWriter
-    from hrc_lab.env.sim.expert import ScriptedExpert
+    from hrc_lab.env.robot.expert import ScriptedExpert
 
     protocol = ctx.cfg.protocol
     scenario = getattr(ctx.cfg.env, "scenario", ctx.cfg.env.cell)
@@ -140,7 +140,7 @@ def render_demo(ctx: RunContext) -> dict[str, float]:
     import cv2
     from hydra.core.hydra_config import HydraConfig
 
-    from hrc_lab.env.sim.expert import ScriptedExpert
+    from hrc_lab.env.robot.expert import ScriptedExpert
 
     protocol = ctx.cfg.protocol
     scenario = getattr(ctx.cfg.env, "scenario", ctx.cfg.env.cell)

@@ -277,7 +277,7 @@ class Table31Protocol:
     ``subgoals_per_stage`` re-sampled sub-goals per stage, ``trials`` closed-loop trials scored per object at
     each threshold in ``thresholds`` (delta_r). ``stage_starts``: where each stage's chain of training pairs
     begins (``hrc_lab.motion.two_level.correction_pairs``). ``placement_noise``: std (m, per x-y axis) of the
-    expert's aim around each goal when it places a part (``hrc_lab.env.sim.expert.ScriptedExpert``)."""
+    expert's aim around each goal when it places a part (``hrc_lab.env.robot.expert.ScriptedExpert``)."""
 
     demos: int = 20
     trials: int = 50

@@ -102,7 +102,7 @@ class GraspSolverConfig:
     lstm_hidden: int = 64
     lr: float = 1e-3
     batch_size: int = 32
-    steps_per_epoch: int = 50  # an epoch is this many batches sampled with replacement
+    steps: int = 1000  # gradient steps in all, split over trainer.max_epochs (batches sampled with replacement)
     max_iterations: int = 6  # Algorithm 4: most requests (graspability check + decoded solution) on one image
     detector: DetectorConfig = field(default_factory=DetectorConfig)
 
@@ -113,7 +113,7 @@ class GraspSolverConfig:
         for key in ("distance_filter", "hidden", "layers", "segments", "word_dim", "lstm_hidden", "lr"):
             if getattr(self, key) <= 0:
                 raise ValueError(f"grasp.{key} must be > 0, got {getattr(self, key)}")
-        for key in ("batch_size", "steps_per_epoch", "max_iterations"):
+        for key in ("batch_size", "steps", "max_iterations"):
             if getattr(self, key) < 1:
                 raise ValueError(f"grasp.{key} must be >= 1, got {getattr(self, key)}")
 

@@ -55,7 +55,7 @@ from torchvision.models.resnet import BasicBlock
 from torchvision.ops import MultiScaleRoIAlign, box_iou, nms
 from torchvision.ops.feature_pyramid_network import FeaturePyramidNetwork
 
-from hrc_lab.env.clutter import PART_TYPES, ClutterScene
+from hrc_lab.env.clutter.spec import PART_TYPES, ClutterScene
 from hrc_lab.grasp.configs import LEVELS, DetectorConfig
 from hrc_lab.training import FixedStepDataModule, SupervisedModule, steps_per_epoch
 

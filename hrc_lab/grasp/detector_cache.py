@@ -14,7 +14,7 @@ import torch
 
 from hrc_lab.cache import cache_key, cached
 from hrc_lab.data.files import DataFileError, load_torch, load_weights
-from hrc_lab.env.clutter import ClutterScene
+from hrc_lab.env.clutter.spec import ClutterScene
 from hrc_lab.grasp.configs import DetectorConfig
 from hrc_lab.grasp.detector import ObjectDetector
 

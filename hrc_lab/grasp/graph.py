@@ -15,7 +15,7 @@ import numpy as np
 import torch
 from torch_geometric.data import Data
 
-from hrc_lab.env.clutter import PART_TYPES
+from hrc_lab.env.clutter.spec import PART_TYPES
 
 MIN_DISTANCE = 1e-3  # two boxes with (almost) the same centre: cap the inverse distance
 

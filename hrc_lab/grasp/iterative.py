@@ -2,7 +2,7 @@
 object (or a call for help) is found, and score the answer against the labelling rule.
 
 The decoder names part types ("move b and c"); the proposed objects are the nearest detected objects of those
-types (image-plane box-centre distance, as :func:`hrc_lab.env.clutter_rule.resolve_request` resolves the rule's own
+types (image-plane box-centre distance, as :func:`hrc_lab.env.clutter.rule.resolve_request` resolves the rule's own
 solutions), and they become the new request.
 """
 
@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hrc_lab.env.clutter_rule import solution_types
+from hrc_lab.env.clutter.rule import solution_types
 from hrc_lab.grasp.solver import NodeReading
 
 HELP = "help"

@@ -9,8 +9,8 @@ from itertools import combinations
 import numpy as np
 import torch
 
-from hrc_lab.env.clutter import ClutterScene, ClutterSpec
-from hrc_lab.env.clutter_rule import blockers, graspable, solution_tokens
+from hrc_lab.env.clutter.rule import blockers, graspable, solution_tokens
+from hrc_lab.env.clutter.spec import ClutterScene, ClutterSpec
 from hrc_lab.grasp.configs import DetectorConfig
 from hrc_lab.grasp.detector import Detections, match_detections
 

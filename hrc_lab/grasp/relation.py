@@ -25,11 +25,11 @@ from torch import nn
 from torch_geometric.data import Data
 from torch_geometric.nn import GCNConv
 
-from hrc_lab.env.clutter import PART_TYPES
+from hrc_lab.env.clutter.spec import PART_TYPES
 from hrc_lab.grasp.configs import GraspSolverConfig
 from hrc_lab.grasp.observation import SceneNodes
 from hrc_lab.grasp.solver import NodeReading, labelled_nodes
-from hrc_lab.training import FixedStepDataModule, SupervisedModule
+from hrc_lab.training import FixedStepDataModule, SupervisedModule, steps_per_epoch
 
 RELATIONS = ("none", "above", "under", "help")
 
@@ -144,7 +144,7 @@ class RelationSolver:
             raise ValueError("no training relations")
         torch.manual_seed(self.seed)
         self.network = RelationNet(graphs[0].x.shape[1], self.cfg)
-        data = FixedStepDataModule(graphs, self.cfg.batch_size, self.cfg.steps_per_epoch)
+        data = FixedStepDataModule(graphs, self.cfg.batch_size, steps_per_epoch(self.cfg.steps, trainer))
         trainer.fit(RelationModule(self.network, self.cfg.lr), datamodule=data)
 
     @torch.no_grad()

@@ -28,12 +28,12 @@ from torch_geometric.data import Data
 from torch_geometric.loader import DataLoader
 from torch_geometric.nn import GCNConv, GraphConv
 
-from hrc_lab.env.clutter import PART_TYPES
-from hrc_lab.env.clutter_rule import VOCABULARY
+from hrc_lab.env.clutter.rule import VOCABULARY
+from hrc_lab.env.clutter.spec import PART_TYPES
 from hrc_lab.grasp.configs import GraspSolverConfig
 from hrc_lab.grasp.graph import scene_graph
 from hrc_lab.grasp.observation import SceneNodes
-from hrc_lab.training import FixedStepDataModule, SupervisedModule, binary_accuracy
+from hrc_lab.training import FixedStepDataModule, SupervisedModule, binary_accuracy, steps_per_epoch
 from hrc_lab.vocabulary import PAD, START, TokenVocabulary
 
 MAX_WORDS = 4  # "move b and c"
@@ -211,7 +211,7 @@ class GraspSolver:
             raise ValueError("no training graphs")
         torch.manual_seed(self.seed)
         self.network = GraspSolverNet(graphs[0].x.shape[1], self.vocab, self.cfg)
-        data = FixedStepDataModule(graphs, self.cfg.batch_size, self.cfg.steps_per_epoch)
+        data = FixedStepDataModule(graphs, self.cfg.batch_size, steps_per_epoch(self.cfg.steps, trainer))
         trainer.fit(GraspSolverModule(self.network, self.cfg.lr), datamodule=data)
 
     @torch.no_grad()

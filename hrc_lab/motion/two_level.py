@@ -12,7 +12,7 @@ Labels: Ch.4 (Fig. 4.4) 0 = picking (l_pi), 1 + slot = placing into goal slot; t
 selected product's position when picking and the box position p when placing. Ch.3 (3.3): the stage label
 0 pick blue, 1 place blue, 2 pick red, 3 place red; the observation is the three objects' positions and r.
 
-r is the lip at the commanded joints (:meth:`~hrc_lab.env.sim.cell.HRCCell.lip_target_position`) wherever the
+r is the lip at the commanded joints (:meth:`~hrc_lab.env.robot.cell.HRCCell.lip_target_position`) wherever the
 robot plans or acts from it; the measured lip, a control step behind, decides when a sub-goal is reached.
 """
 
@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hrc_lab.env.sim.cell import PICK, PLACE
+from hrc_lab.env.robot.cell import PICK, PLACE
 from hrc_lab.motion.configs import STAGE_STARTS
 
 RELEASE = np.array([0.0, 0.0, 0.0, -1.0])

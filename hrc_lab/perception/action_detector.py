@@ -127,7 +127,8 @@ class ActionDetector(nn.Module):
         return self.network(batch)
 
     def fit(self, train: ActionWindows, trainer: pl.Trainer, val: ActionWindows | None = None) -> ActionDetector:
-        """Train for the Trainer's ``max_epochs`` (protocols build it with ``max_epochs=cfg.epochs``) on shuffled
+        """Train for the Trainer's ``max_epochs`` (full passes over the windows, ~11 batches each on the Fig. 5.6
+        training split) on shuffled
         batches of ``cfg.batch_size``; shuffling, dropout and augmentation are seeded from ``seed``."""
         torch.manual_seed(self.seed)
         shuffle = torch.Generator().manual_seed(self.seed)

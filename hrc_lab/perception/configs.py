@@ -52,7 +52,6 @@ class ActionDetectorConfig:
     lr: float = 1e-3  # AdamW
     weight_decay: float = 1e-4
     batch_size: int = 32
-    epochs: int = 20  # the protocol's Trainer max_epochs (~11 batches per epoch on the Fig. 5.6 training split)
     # training only: random shift/zoom and brightness of the images, noise on the track
     augment: bool = True
 
@@ -63,7 +62,7 @@ class ActionDetectorConfig:
         if self.temporal == "none" and self.spatial == "none":
             raise ValueError("perception.temporal and perception.spatial cannot both be 'none'")
         for key in ("window", "lstm_hidden", "crop_size", "spatial_dim", "frame_size", "frame_stride",
-                    "fusion_hidden", "lr", "batch_size", "epochs"):
+                    "fusion_hidden", "lr", "batch_size"):
             if getattr(self, key) <= 0:
                 raise ValueError(f"perception.{key} must be > 0, got {getattr(self, key)}")
         for key in ("lstm_dropout", "dropout"):

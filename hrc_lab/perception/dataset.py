@@ -1,7 +1,7 @@
 """The labelled action-window data set of Fig. 5.5 / 5.6: generated clips of every Table 5.1 action, tracked once
 with MediaPipe and cached, so that training runs never re-run the tracker.
 
-Clip k of action a is rendered from the seed (data_seed, a, k) (:func:`hrc_lab.env.assembly_video.render_action_clip`),
+Clip k of action a is rendered from the seed (data_seed, a, k) (:func:`hrc_lab.env.assembly.video.render_action_clip`),
 so the set is the same on every machine. Tracking runs in ``workers`` processes (joblib), one clip per task.
 """
 
@@ -16,8 +16,8 @@ from tqdm import tqdm
 
 from hrc_lab.cache import cache_key
 from hrc_lab.data.files import read_npz
-from hrc_lab.env.assemble_to_order import AssembleToOrderSpec, action_labels
-from hrc_lab.env.assembly_video import GENERATOR_VERSION, AssemblyVideoSpec, render_action_clip
+from hrc_lab.env.assembly.spec import AssembleToOrderSpec, action_labels
+from hrc_lab.env.assembly.video import GENERATOR_VERSION, AssemblyVideoSpec, render_action_clip
 from hrc_lab.perception.hand_tracking import HandTracker
 from hrc_lab.perception.windows import window_features
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from hrc_lab.env.assemble_to_order import SCREW, parse_assembly, plan_text
+from hrc_lab.env.assembly.spec import SCREW, parse_assembly, plan_text
 from hrc_lab.perception.hand_tracking import HandObservation, HandTracker
 from hrc_lab.perception.windows import Window, WindowStream
 from hrc_lab.reasoning.hrc_loop import LoopEvent, SemanticPlannerLoop

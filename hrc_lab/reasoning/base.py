@@ -11,7 +11,7 @@ from torch import nn
 from torch_geometric.data import Data
 from torch_geometric.loader import DataLoader
 
-from hrc_lab.env.package_to_order import PackageToOrderSpec, StageObservation
+from hrc_lab.env.robot.spec import PackageToOrderSpec, StageObservation
 from hrc_lab.reasoning.configs import TorchReasonerConfig
 from hrc_lab.reasoning.encoding import task_labels
 
@@ -70,12 +70,12 @@ class TorchReasoner(Reasoner):
 
     def fit(self, observations: list[StageObservation], trainer: pl.Trainer | None) -> None:
         from hrc_lab.reasoning.module import ReasoningModule
-        from hrc_lab.training import FixedStepDataModule
+        from hrc_lab.training import FixedStepDataModule, steps_per_epoch
 
         if trainer is None:
             raise ValueError(f"{type(self).__name__} is trained by Lightning and needs a trainer")
         samples = [self.encode(o) for o in observations]
-        data = FixedStepDataModule(samples, self.cfg.batch_size, self.cfg.steps_per_epoch)
+        data = FixedStepDataModule(samples, self.cfg.batch_size, steps_per_epoch(self.cfg.steps, trainer))
         trainer.fit(ReasoningModule(self.network, lr=self.cfg.lr), datamodule=data)
 
     @torch.no_grad()

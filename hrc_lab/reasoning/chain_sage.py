@@ -16,7 +16,7 @@ from torch import nn
 from torch_geometric.data import Data
 from torch_geometric.nn import SAGEConv, global_mean_pool
 
-from hrc_lab.env.package_to_order import StageObservation
+from hrc_lab.env.robot.spec import StageObservation
 from hrc_lab.reasoning.base import TorchReasoner
 from hrc_lab.reasoning.configs import ChainSAGEConfig
 from hrc_lab.reasoning.encoding import chain_graph

@@ -13,7 +13,7 @@ REASONERS = Registry("reasoning")
 class TorchReasonerConfig:
     lr: float = 1e-3  # Adam; Ch.4: 1e-3 as in 4.4.1
     batch_size: int = 64
-    steps_per_epoch: int = 50  # an epoch is this many batches sampled with replacement
+    steps: int = 1000  # gradient steps in all, split over trainer.max_epochs (batches sampled with replacement)
 
     def __post_init__(self) -> None:
         """Every numeric setting of a torch reasoner (rates, sizes, layer counts) must be > 0."""

@@ -13,7 +13,7 @@ import numpy as np
 import torch
 from torch_geometric.data import Data
 
-from hrc_lab.env.package_to_order import PackageToOrderSpec, StageObservation
+from hrc_lab.env.robot.spec import PackageToOrderSpec, StageObservation
 
 POSITION_SCALE = 10.0
 

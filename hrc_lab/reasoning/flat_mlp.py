@@ -6,7 +6,7 @@ from __future__ import annotations
 from torch import nn
 from torch_geometric.data import Data
 
-from hrc_lab.env.package_to_order import StageObservation
+from hrc_lab.env.robot.spec import StageObservation
 from hrc_lab.reasoning.base import TorchReasoner
 from hrc_lab.reasoning.configs import FlatMLPConfig
 from hrc_lab.reasoning.encoding import flat_data

@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from hrc_lab.env.assemble_to_order import FINISHED, SCREW, AssembleToOrderSpec, parse_assembly, plan_text
+from hrc_lab.env.assembly.spec import FINISHED, SCREW, AssembleToOrderSpec, parse_assembly, plan_text
 from hrc_lab.reasoning.semantic_planner import Plan, SemanticPlanner
 
 #: PickandPlace(part, position) -> the (part, position) the robot actually placed, or None if it placed nothing

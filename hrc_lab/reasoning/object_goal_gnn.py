@@ -17,7 +17,7 @@ from torch import nn
 from torch_geometric.data import Data
 from torch_geometric.nn import global_mean_pool
 
-from hrc_lab.env.package_to_order import StageObservation
+from hrc_lab.env.robot.spec import StageObservation
 from hrc_lab.reasoning.base import TorchReasoner
 from hrc_lab.reasoning.chain_sage import SAGEStack
 from hrc_lab.reasoning.configs import ObjectGoalGNNConfig

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from sklearn.ensemble import RandomForestClassifier
 
-from hrc_lab.env.package_to_order import StageObservation
+from hrc_lab.env.robot.spec import StageObservation
 from hrc_lab.reasoning.base import Reasoner
 from hrc_lab.reasoning.configs import RandomForestConfig
 from hrc_lab.reasoning.encoding import flat_vector, goal_table

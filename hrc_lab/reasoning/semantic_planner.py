@@ -25,7 +25,7 @@ from torch_geometric.data import Data
 from torch_geometric.loader import DataLoader
 from torch_geometric.nn import global_mean_pool
 
-from hrc_lab.env.assemble_to_order import (
+from hrc_lab.env.assembly.spec import (
     FINISHED,
     AssembleToOrderSpec,
     Scenario,
@@ -35,7 +35,7 @@ from hrc_lab.env.assemble_to_order import (
 )
 from hrc_lab.reasoning.chain_sage import SAGEStack
 from hrc_lab.reasoning.configs import SemanticPlannerConfig
-from hrc_lab.training import FixedStepDataModule, SupervisedModule
+from hrc_lab.training import FixedStepDataModule, SupervisedModule, steps_per_epoch
 from hrc_lab.vocabulary import PAD, START, TokenVocabulary
 
 
@@ -164,7 +164,7 @@ class SemanticPlanner:
 
     def fit(self, scenarios: list[Scenario], trainer: pl.Trainer) -> None:
         samples = [scenario_graph(self.spec, s, self.vocab) for s in scenarios]
-        data = FixedStepDataModule(samples, self.cfg.batch_size, self.cfg.steps_per_epoch)
+        data = FixedStepDataModule(samples, self.cfg.batch_size, steps_per_epoch(self.cfg.steps, trainer))
         trainer.fit(SemanticPlannerModule(self.network, self.cfg.lr), datamodule=data)
 
     @torch.no_grad()

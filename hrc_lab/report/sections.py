@@ -34,7 +34,7 @@ def register_section(table: str):
 TOPICS = {
     "ch4_reasoning": (
         "Ch.4 reasoning module (GraphSAGE importance ranking) vs. baselines",
-        "Our scenes come from the simulator-independent package-to-order spec (`hrc_lab/env/package_to_order.py`), "
+        "Our scenes come from the simulator-independent package-to-order spec (`hrc_lab/env/robot/spec.py`), "
         "not the thesis' CoppeliaSim scenes.",
         [
             ("ch4/table_4_1", "table_4_1"),
@@ -45,7 +45,7 @@ TOPICS = {
     ),
     "ch3_motion": (
         "Ch.3 two-level LfD motion planner: error correction (Table 3.1) and the neural dynamic planner (Fig. 3.10)",
-        "Trials run in our robosuite UR5e error-correction cells (`hrc_lab/env/sim/error_correction.py`), not the "
+        "Trials run in our robosuite UR5e error-correction cells (`hrc_lab/env/robot/correction_cell.py`), not the "
         "thesis' CoppeliaSim UR10; demonstrations come from the scripted expert (how many per case and seed: each "
         "section, read from its runs), segmented into stages by PELT change points (`hrc_lab/data/segmentation.py`), "
         "with re-sampled sub-goals per stage. "
@@ -54,7 +54,7 @@ TOPICS = {
     ),
     "ch4_motion": (
         "Ch.4 motion module: task-conditioned sub-goal planner and neural dynamic planner vs. VI, GPR, MLP",
-        "Closed-loop trials run in our robosuite UR5e cell (`hrc_lab/env/sim/`), not the thesis' CoppeliaSim UR10; "
+        "Closed-loop trials run in our robosuite UR5e cell (`hrc_lab/env/robot/`), not the thesis' CoppeliaSim UR10; "
         "demonstrations come from the scripted expert (how many per cell and seed: the section, read from its runs; "
         "3 designed sub-goals per stage, `hrc_lab.motion.two_level.DESIGNED_SUBGOALS`). The "
         "neural dynamic planner sees Δ = s − r in the arm's base frame (radial, tangential, vertical; the thesis does "
@@ -63,13 +63,13 @@ TOPICS = {
     ),
     "ch5_planner": (
         "Ch.5 graph semantic planner: goal inference, next object and text plans",
-        "Our scenarios come from the assemble-to-order domain (`hrc_lab/env/assemble_to_order.py`) with our own three "
+        "Our scenarios come from the assemble-to-order domain (`hrc_lab/env/assembly/spec.py`) with our own three "
         "goal configurations (`conf/env/ato.yaml`; the thesis' Fig. 5.4 is not legible in its text).",
         [("ch5/fig_5_7", "fig_5_7"), ("ch5/table_5_2_planner", "table_5_2_planner")],
     ),
     "ch5_perception": (
         "Ch.5 hand-centric action detector and the video-to-plan pipeline",
-        "Videos are generated (`hrc_lab/env/assembly_video.py`): a top-down view of our assembly cell with a right "
+        "Videos are generated (`hrc_lab/env/assembly/video.py`): a top-down view of our assembly cell with a right "
         "hand drawn by OpenCV that MediaPipe detects, performing the 18 actions of Table 5.1 along noisy human-like "
         "paths with varied speed, skin tone, hand size, light and table colour; not the thesis' RealSense recordings "
         "of a real worker. MediaPipe 0.10.21 (lite landmark model) tracks the hand; every network trains from "
@@ -79,16 +79,16 @@ TOPICS = {
     "ch6_grasp": (
         "Ch.6 iterative visual grasping: graspability and grasp solutions from detector features",
         "Scenes are rendered in MuJoCo (parts a, b, c dropped with physics, top-down camera; "
-        "`hrc_lab/env/clutter_scene.py`), not the thesis' photos of real parts; labels come from one geometric "
-        "rule for a top-down grasp with a fixed gripper orientation (`hrc_lab/env/clutter_rule.py`), not a human "
+        "`hrc_lab/env/clutter/scenes.py`), not the thesis' photos of real parts; labels come from one geometric "
+        "rule for a top-down grasp with a fixed gripper orientation (`hrc_lab/env/clutter/rule.py`), not a human "
         "expert; the detector is a small Faster R-CNN trained from scratch on the rendered scenes, not a "
         "pretrained ResNet-101-FPN.",
         [("ch6/table_6_1", "table_6_1"), ("ch6/table_6_2_single", "table_6_2_single")],
     ),
     "data_demonstrations": (
         "Robot cells and scripted-expert demonstrations (Ch.3, Ch.4)",
-        "robosuite 1.5.1 UR5e with our suction cup on MuJoCo 3.9.0 (`hrc_lab/env/sim/`), not the thesis' CoppeliaSim "
-        "UR10; demonstrations come from a scripted expert (`hrc_lab/env/sim/expert.py`), not keyboard teleoperation. "
+        "robosuite 1.5.1 UR5e with our suction cup on MuJoCo 3.9.0 (`hrc_lab/env/robot/`), not the thesis' CoppeliaSim "
+        "UR10; demonstrations come from a scripted expert (`hrc_lab/env/robot/expert.py`), not keyboard teleoperation. "
         "One rendered demonstration per cell (`hrc-lab experiment=data/render_demo env=<env> [env.sim.case=2]`) is "
         "in [videos/](videos/): packing a 4-of-5 order and a 3-of-5 order after a human packed part of it "
         "(CASE 2), correcting one misplaced cuboid and two cuboids where red occupies blue's place.\n\n"

@@ -27,7 +27,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from hrc_lab.env.clutter import PART_TYPES, ClutterObject, ClutterScene, ClutterSpec
+from hrc_lab.env.clutter.spec import PART_TYPES, ClutterObject, ClutterScene, ClutterSpec
 from hrc_lab.vocabulary import END, PAD, START
 
 GRASP, HELP, MOVE, AND = "grasp", "help", "move", "and"

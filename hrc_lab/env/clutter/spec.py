@@ -2,9 +2,9 @@
 
 Three part types a, b, c (at most 3, 2 and 1 in a scene; a the smallest, c the tallest) are dropped on a table at
 random positions and yaw angles and settle under MuJoCo physics, so they overlap and rest on each other
-(:mod:`hrc_lab.env.clutter_scene`, pure MuJoCo). A top-down camera renders the RGB image the detector sees. The
+(:mod:`hrc_lab.env.clutter.scenes`, pure MuJoCo). A top-down camera renders the RGB image the detector sees. The
 robot grasps only from the top with a fixed gripper orientation; which part it can grasp, and what to move first
-when it cannot, is decided by one rule (:mod:`hrc_lab.env.clutter_rule`), the expert the models learn from.
+when it cannot, is decided by one rule (:mod:`hrc_lab.env.clutter.rule`), the expert the models learn from.
 
 The camera is a pinhole looking straight down at the table centre from ``camera_height``; its field of view is
 chosen so the spawn area plus a margin (:attr:`ClutterSpec.view_half_width`) fills the image.

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hrc_lab.env.sim.cell import CellObject, HRCCell
+from hrc_lab.env.robot.cell import CellObject, HRCCell
 
 GREEN, BLUE, RED = 0, 1, 2
 HALF = (0.025, 0.025, 0.02)  # cuboid half sizes, m

@@ -40,8 +40,8 @@ import numpy as np
 from tqdm import tqdm
 
 from hrc_lab.data.files import DataFileError, read_npz
-from hrc_lab.env.clutter import PART_TYPES, ClutterObject, ClutterScene, ClutterSpec
-from hrc_lab.env.clutter_rule import part_corners, rotation_matrix
+from hrc_lab.env.clutter.rule import part_corners, rotation_matrix
+from hrc_lab.env.clutter.spec import PART_TYPES, ClutterObject, ClutterScene, ClutterSpec
 
 TIMESTEP = 0.004  # s per physics step
 CHECK_EVERY = 10  # steps between two stillness checks (0.04 s)

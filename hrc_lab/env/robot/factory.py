@@ -1,4 +1,4 @@
-"""Build a robosuite cell from a validated ``env`` config (:mod:`hrc_lab.env.settings`)."""
+"""Build a robosuite cell from a validated ``env`` config (:mod:`hrc_lab.env.robot.settings`)."""
 
 from __future__ import annotations
 
@@ -6,11 +6,11 @@ import dataclasses
 
 import numpy as np
 
-from hrc_lab.env.package_to_order import PackageToOrderSpec
-from hrc_lab.env.settings import ErrorCorrectionConfig, PackageToOrderConfig, SimSettings
-from hrc_lab.env.sim.cell import HRCCell
-from hrc_lab.env.sim.error_correction import ErrorCorrection
-from hrc_lab.env.sim.package_to_order import PackageToOrder
+from hrc_lab.env.robot.cell import HRCCell
+from hrc_lab.env.robot.correction_cell import ErrorCorrection
+from hrc_lab.env.robot.package_cell import PackageToOrder
+from hrc_lab.env.robot.settings import ErrorCorrectionConfig, PackageToOrderConfig, SimSettings
+from hrc_lab.env.robot.spec import PackageToOrderSpec
 
 
 def cell_kwargs(sim: SimSettings) -> dict:

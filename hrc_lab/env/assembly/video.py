@@ -3,7 +3,7 @@ the thesis exists to share, and nothing may be downloaded).
 
 The cell: a pending area on the left with a bin per part type (o1 blue angle bracket, o2 orange block, o3 green
 valve) and a screwdriver, and a steel bracket on the right with six numbered positions, p1 on the right to p6 on
-the left (as in 5.3). A right hand (:mod:`hrc_lab.env.hand_drawing`) performs the 18 actions of Table 5.1 along
+the left (as in 5.3). A right hand (:mod:`hrc_lab.env.assembly.hand_drawing`) performs the 18 actions of Table 5.1 along
 human-like paths: a minimum-jerk profile through a random via point, a slow wobble, per-frame jitter, a random start
 delay and speed, and a hand that turns as it moves:
 
@@ -26,7 +26,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from hrc_lab.env.assemble_to_order import (
+from hrc_lab.env.assembly.hand_drawing import SKIN_TONES, HandPose, draw_hand
+from hrc_lab.env.assembly.spec import (
     FETCH,
     SCREW,
     TRANSPORT,
@@ -35,7 +36,6 @@ from hrc_lab.env.assemble_to_order import (
     Scenario,
     next_object,
 )
-from hrc_lab.env.hand_drawing import SKIN_TONES, HandPose, draw_hand
 
 GENERATOR_VERSION = 2  # bump when a change to the drawing or the motions changes the clips (cached data sets)
 TABLE_RGB = ((150, 140, 125), (128, 132, 126), (160, 130, 100), (112, 118, 128))

@@ -1,6 +1,6 @@
 """Package-to-order cell of Ch.4 (thesis 4.3, Fig. 4.5): products in a pending area, a packaging box, an order.
 
-Scenes come from the simulator-independent spec and sampler of :mod:`hrc_lab.env.package_to_order`, so the robot
+Scenes come from the simulator-independent spec and sampler of :mod:`hrc_lab.env.robot.spec`, so the robot
 meets exactly the scenes the reasoning module learned on. Per episode a goal configuration is drawn (from all
 mCn x n! or from a given list), then :func:`sample_episode` draws product positions and, for CASE 2, the products a
 simulated human packs first (placed into their slots one by one before the robot starts). With ``n_missing`` some
@@ -12,9 +12,13 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 
 import numpy as np
+
+from hrc_lab.env.robot.cell import CellObject, HRCCell  # first: it imports robosuite quietly
+
+# isort: split
 from robosuite.utils.observables import Observable, sensor
 
-from hrc_lab.env.package_to_order import (
+from hrc_lab.env.robot.spec import (
     Episode,
     GoalConfiguration,
     PackageToOrderSpec,
@@ -22,7 +26,6 @@ from hrc_lab.env.package_to_order import (
     goal_configurations,
     sample_episode,
 )
-from hrc_lab.env.sim.cell import CellObject, HRCCell
 
 PRODUCT_COLOURS = [
     (0.85, 0.33, 0.10, 1), (0.93, 0.69, 0.13, 1), (0.47, 0.67, 0.19, 1), (0.30, 0.75, 0.93, 1),

@@ -21,20 +21,30 @@ Success (Eq. 3.7 / 4.7): that, with no collision during the episode.
 
 from __future__ import annotations
 
+import logging
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
-import mujoco
-import numpy as np
-from robosuite import macros
-from robosuite.controllers import load_composite_controller_config, load_part_controller_config
-from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
-from robosuite.models.arenas import TableArena
-from robosuite.models.objects import BoxObject
-from robosuite.models.tasks import ManipulationTask
-from robosuite.utils.observables import Observable, sensor
+# robosuite warns on import about optional extras (private macros, robosuite_models, mink) that we do not use. The
+# modules of hrc_lab.env.robot reach robosuite through this one, so it is imported here first, quietly.
+logging.disable(logging.WARNING)
+try:
+    import robosuite  # noqa: F401
+finally:
+    logging.disable(logging.NOTSET)
+logging.getLogger("robosuite_logs").setLevel(logging.WARNING)  # its INFO lines (controller files) are noise here
 
-from hrc_lab.env.sim.suction import Suction, SuctionCup, weld_elements
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+from robosuite import macros  # noqa: E402
+from robosuite.controllers import load_composite_controller_config, load_part_controller_config  # noqa: E402
+from robosuite.environments.manipulation.manipulation_env import ManipulationEnv  # noqa: E402
+from robosuite.models.arenas import TableArena  # noqa: E402
+from robosuite.models.objects import BoxObject  # noqa: E402
+from robosuite.models.tasks import ManipulationTask  # noqa: E402
+from robosuite.utils.observables import Observable, sensor  # noqa: E402
+
+from hrc_lab.env.robot.suction import Suction, SuctionCup, weld_elements  # noqa: E402
 
 PICK, PLACE = 0, 1
 # Tool down, the lip 0.22 m above the table centre: the first reach of a trial starts at working height (from a

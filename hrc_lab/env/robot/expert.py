@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hrc_lab.env.sim.cell import PICK, PLACE, HRCCell
+from hrc_lab.env.robot.cell import PICK, PLACE, HRCCell
 
 HOVER = 0.08  # above an object / goal before descending, m
 APPROACH_OFFSET = np.array([0.0, -0.10])  # x-y of the "point relative to the goal" (towards the pending area)

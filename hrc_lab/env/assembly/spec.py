@@ -40,7 +40,7 @@ def _default_goals() -> list[list[str]]:
 class AssemblyVideoSpec:
     """Camera, timing and the ranges every generated clip of the cell is sampled from (``env.video``: top-down
     videos of the cell with a rendered right hand for the Ch.5 perception; the videos themselves are made by
-    :mod:`hrc_lab.env.assembly_video`)."""
+    :mod:`hrc_lab.env.assembly.video`)."""
 
     width: int = 320
     height: int = 240

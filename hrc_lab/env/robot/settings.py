@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from hrc_lab.env.package_to_order import PackageToOrderSpec
+from hrc_lab.env.robot.spec import PackageToOrderSpec
 
 EC_TASKS = ("one_object", "two_object", "place", "stack")
 
@@ -54,7 +54,7 @@ class SimSettings:
 @dataclass(frozen=True)
 class PackageToOrderConfig(PackageToOrderSpec):
     """The package-to-order spec plus the robot cell settings (``sim``: robosuite UR5e + suction cup,
-    :mod:`hrc_lab.env.sim`; unused by the reasoning-only experiments)."""
+    :mod:`hrc_lab.env.robot.factory`; unused by the reasoning-only experiments)."""
 
     sim: SimSettings = field(default_factory=SimSettings)
 
