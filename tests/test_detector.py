@@ -8,15 +8,8 @@ import pytest
 import torch
 
 from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene
-from hrc_lab.grasp.detector import (
-    Detections,
-    DetectorConfig,
-    DetectorModule,
-    ObjectDetector,
-    detection_quality,
-    match_detections,
-    scene_target,
-)
+from hrc_lab.grasp.detection_metrics import detection_quality, match_detections
+from hrc_lab.grasp.detector import Detections, DetectorConfig, DetectorModule, ObjectDetector, scene_target
 from hrc_lab.grasp.detector_cache import detector_cache_key, load_or_train_detector
 
 SIZE = 64

@@ -10,10 +10,10 @@ import pytest
 from hrc_lab.env.assembly.hand_drawing import SKIN_TONES, HandPose, draw_hand, landmark_points
 from hrc_lab.env.assembly.spec import SCREW, AssembleToOrderSpec, AssemblyVideoSpec, Scenario, action_labels
 from hrc_lab.env.assembly.video import Layout, render_action_clip, render_session, session_script
-from hrc_lab.experiments.ch5_perception import checkpoints, segments_of
 from hrc_lab.perception.configs import ActionDetectorConfig
 from hrc_lab.perception.hand_tracking import HandTracker
 from hrc_lab.perception.pipeline import ActionPipeline
+from hrc_lab.perception.sessions import checkpoints, segments_of
 from hrc_lab.perception.windows import WindowStream, fill_track, hand_crop
 from hrc_lab.reasoning.hrc_loop import SemanticPlannerLoop
 from hrc_lab.reasoning.semantic_planner import Plan

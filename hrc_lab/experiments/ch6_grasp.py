@@ -20,7 +20,7 @@ from hrc_lab.cache import cache_key, cached
 from hrc_lab.env.clutter.spec import ClutterScene, ClutterSpec
 from hrc_lab.experiments.context import RunContext
 from hrc_lab.grasp import GRASPS
-from hrc_lab.grasp.detector import detection_quality
+from hrc_lab.grasp.detection_metrics import detection_quality
 from hrc_lab.grasp.detector_cache import detector_cache_key, load_or_train_detector
 from hrc_lab.grasp.iterative import IterativeAnswer, iterate
 from hrc_lab.grasp.observation import SceneNodes, scene_nodes

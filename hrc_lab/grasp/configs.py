@@ -23,7 +23,7 @@ DECODERS = ("lstm_att", "lstm")
 
 @dataclass
 class DetectorConfig:
-    """Size, training and post-processing of the detector (:mod:`hrc_lab.grasp.detector` explains the sizes): a
+    """Size, training and post-processing of the detector (:mod:`hrc_lab.grasp.detector_model` explains the sizes): a
     Faster R-CNN trained from scratch on the rendered training scenes (the thesis used a pretrained
     ResNet-101-FPN), trained once per data set and cached under ``runs/cache/ch6``."""
 

@@ -12,7 +12,8 @@ import torch
 from hrc_lab.env.clutter.rule import blockers, graspable, solution_tokens
 from hrc_lab.env.clutter.spec import ClutterScene, ClutterSpec
 from hrc_lab.grasp.configs import DetectorConfig
-from hrc_lab.grasp.detector import Detections, match_detections
+from hrc_lab.grasp.detection_metrics import match_detections
+from hrc_lab.grasp.detector import Detections
 
 
 @dataclass

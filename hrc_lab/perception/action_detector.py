@@ -17,6 +17,7 @@ from torch import nn
 from torch.utils.data import DataLoader, Dataset
 
 from hrc_lab.perception.configs import ActionDetectorConfig
+from hrc_lab.perception.dataset import STORED_STRIDE, ActionSet, resized_images
 from hrc_lab.perception.networks import ActionDetectorNet
 from hrc_lab.training import ValidatedModule, accuracy
 
@@ -101,6 +102,17 @@ class ActionWindows(Dataset):
             images = _unit_chw(self.images[i])
             item[self.image_key] = _jitter(images) if self.augment else images
         return item
+
+
+def action_windows(cfg: ActionDetectorConfig, data: ActionSet, train: bool = False) -> ActionWindows:
+    """The cached windows of ``data`` (:mod:`hrc_lab.perception.dataset`) at the method's crop and frame sizes."""
+    frames = None
+    if cfg.spatial == "frames":
+        if cfg.frame_stride != STORED_STRIDE:
+            raise ValueError(f"perception.frame_stride must be {STORED_STRIDE} (cached frames), got {cfg.frame_stride}")
+        frames = resized_images(data.frames, cfg.frame_size)
+    return ActionWindows(cfg, data.tracks, data.labels, crops=resized_images(data.crops, cfg.crop_size), frames=frames,
+                         train=train)
 
 
 def action_objective(network: nn.Module, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict]:

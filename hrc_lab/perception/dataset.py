@@ -3,6 +3,9 @@ with MediaPipe and cached, so that training runs never re-run the tracker.
 
 Clip k of action a is rendered from the seed (data_seed, a, k) (:func:`hrc_lab.env.assembly.video.render_action_clip`),
 so the set is the same on every machine. Tracking runs in ``workers`` processes (joblib), one clip per task.
+:func:`cached_action_set` builds it once per cache folder (the windows at :func:`stored_sizes`, whatever the method
+reads; :func:`hrc_lab.perception.action_detector.action_windows` resizes them to a method's sizes) and
+:func:`stratified_split` splits it by class.
 """
 
 from __future__ import annotations
@@ -10,11 +13,12 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 from joblib import Parallel, delayed
 from tqdm import tqdm
 
-from hrc_lab.cache import cache_key
+from hrc_lab.cache import cache_key, cached
 from hrc_lab.data.files import read_npz
 from hrc_lab.env.assembly.spec import AssembleToOrderSpec, action_labels
 from hrc_lab.env.assembly.video import GENERATOR_VERSION, AssemblyVideoSpec, render_action_clip
@@ -33,6 +37,7 @@ class WindowSizes:
 
 
 ACTION_SET_ARRAYS = ("tracks", "crops", "frames", "labels", "tracked", "clip_seeds", "names")  # what save() writes
+STORED_SIDE, STORED_STRIDE = 64, 3  # crops and frames kept in the cache (:func:`stored_sizes`)
 
 
 @dataclass
@@ -111,3 +116,44 @@ def action_set_key(ato: AssembleToOrderSpec, video: AssemblyVideoSpec, clips_per
             "sizes": asdict(sizes), "generator": GENERATOR_VERSION}
     spec["ato"].pop("n_goals", None)  # clips do not depend on which goals are in play
     return cache_key(spec)
+
+
+
+def stored_sizes(model_complexity: int) -> WindowSizes:
+    """The cached windows keep 64 px crops and every 3rd frame at 64 px, whatever the method reads, so that every
+    method of a sweep shares one tracked set; :func:`hrc_lab.perception.action_detector.action_windows` resizes
+    them to the method's sizes."""
+    return WindowSizes(STORED_SIDE, STORED_SIDE, STORED_STRIDE, model_complexity)
+
+
+def cached_action_set(cache_dir: Path, ato: AssembleToOrderSpec, video: AssemblyVideoSpec, clips_per_class: int,
+                      data_seed: int, sizes: WindowSizes, workers: int = 1) -> ActionSet:
+    """The set of :func:`build_action_set`, from ``<cache_dir>/actions_<key>.npz`` when another job already built it
+    (:func:`hrc_lab.cache.cached`: parallel jobs wait for the first)."""
+    key = action_set_key(ato, video, clips_per_class, data_seed, sizes)
+
+    def build(path: Path) -> None:
+        data = build_action_set(ato, video, clips_per_class, data_seed, sizes, workers)
+        data.save(path)
+
+    return ActionSet.load(cached(Path(cache_dir) / f"actions_{key}.npz", build))
+
+
+def resized_images(images: np.ndarray, side: int) -> np.ndarray:
+    """RGB images (..., H, W, 3) at ``side`` x ``side`` px (INTER_AREA); ``images`` itself when already that size."""
+    if images.shape[-2] == side:
+        return images
+    flat = images.reshape(-1, *images.shape[-3:])
+    out = np.stack([cv2.resize(im, (side, side), interpolation=cv2.INTER_AREA) for im in flat])
+    return out.reshape(*images.shape[:-3], side, side, 3)
+
+
+def stratified_split(labels: np.ndarray, fraction: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``fraction`` of every class for training, the rest for testing."""
+    train, test = [], []
+    for c in np.unique(labels):
+        members = rng.permutation(np.flatnonzero(labels == c))
+        cut = int(round(fraction * len(members)))
+        train += members[:cut].tolist()
+        test += members[cut:].tolist()
+    return np.sort(train), np.sort(test)

@@ -3,16 +3,19 @@ planner's event loop (:class:`hrc_lab.reasoning.hrc_loop.SemanticPlannerLoop`).
 
 A screw window triggers the robot at once; an assembly window changes the graph only when the hand motion has
 finished (the hand left the view before another window closed, 5.2.3); fetch and transport change nothing.
-:func:`annotate` draws what the system saw and said on a frame (landmarks, crop box, action, plan).
+:func:`annotate` draws what the system saw and said on a frame (landmarks, crop box, action, plan);
+:func:`annotate_frames` runs the pipeline on a whole video and annotates every frame.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+from tqdm import tqdm
 
 from hrc_lab.env.assembly.spec import SCREW, parse_assembly, plan_text
 from hrc_lab.perception.hand_tracking import HandObservation, HandTracker
@@ -93,3 +96,19 @@ def annotate(frame: np.ndarray, state: PipelineState, loop: SemanticPlannerLoop 
         cv2.putText(out, text, (6, y), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 3, cv2.LINE_AA)
         cv2.putText(out, text, (6, y), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv2.LINE_AA)
     return out
+
+
+def annotate_frames(detector, labels: list[str], loop: SemanticPlannerLoop | None, frames: Sequence[np.ndarray],
+                    complexity: int) -> tuple[list[np.ndarray], PipelineState, int]:
+    """Every frame through the pipeline (MediaPipe model ``complexity``), each :func:`annotate`-d: the annotated
+    frames, the final state and the number of frames with a hand."""
+    cfg = detector.cfg
+    stream = WindowStream(cfg.window, cfg.crop_size, cfg.frame_size, cfg.frame_stride)
+    out, hands = [], 0
+    with HandTracker(model_complexity=complexity) as tracker:
+        pipeline = ActionPipeline(detector, labels, tracker, stream, loop)
+        for frame in tqdm(frames, desc="annotate", unit="frame"):
+            state = pipeline.push(frame)
+            hands += state.observation is not None
+            out.append(annotate(frame, state, loop))
+    return out, pipeline.state, hands

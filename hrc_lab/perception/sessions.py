@@ -1,0 +1,98 @@
+"""Table 5.2 scoring of a whole assembly session streamed through Algorithm 3 (:mod:`hrc_lab.perception.pipeline`):
+action detection (AD) per window, semantic guidance (SG) after every human placement and semantic control (SC) per
+screw, against the session's true frame labels and steps (:func:`hrc_lab.env.assembly.video.render_session`)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from hrc_lab.env.assembly.spec import (
+    SCREW,
+    AssembleToOrderSpec,
+    Scenario,
+    action_labels,
+    next_object,
+    parse_assembly,
+    plan_tokens,
+)
+from hrc_lab.env.assembly.video import Clip, SessionStep
+from hrc_lab.perception.hand_tracking import HandTracker
+from hrc_lab.perception.pipeline import ActionPipeline, annotate
+from hrc_lab.perception.windows import WindowStream
+from hrc_lab.reasoning.hrc_loop import SemanticPlannerLoop
+
+if TYPE_CHECKING:
+    from hrc_lab.perception.action_detector import ActionDetector
+
+
+def segments_of(labels: list[str]) -> list[tuple[str, int, int]]:
+    """Runs of equal frame labels: (label, start, end)."""
+    runs, start = [], 0
+    for k in range(1, len(labels) + 1):
+        if k == len(labels) or labels[k] != labels[start]:
+            runs.append((labels[start], start, k))
+            start = k
+    return runs
+
+
+def checkpoints(clip: Clip, steps: list[SessionStep]) -> list[tuple[SessionStep, int, int]]:
+    """(step, first frame of its placing or screwing segment, the frame the hand has left after it)."""
+    runs = segments_of(clip.labels)
+    decisive = [(i, r) for i, r in enumerate(runs) if r[0] == SCREW or parse_assembly(r[0])]
+    if len(decisive) != len(steps):
+        raise RuntimeError(f"session has {len(decisive)} placing/screwing segments for {len(steps)} steps")
+    out = []
+    for step, (i, (_, start, _)) in zip(steps, decisive):
+        gap_end = runs[i + 1][2] if i + 1 < len(runs) and runs[i + 1][0] == "none" else runs[i][2]
+        out.append((step, start, gap_end - 1))
+    return out
+
+
+def run_session(detector: ActionDetector, planner, spec: AssembleToOrderSpec, clip: Clip, steps: list[SessionStep],
+                goal: int, complexity: int, annotated: list | None = None) -> dict:
+    """Stream one session through Algorithm 3 and score it: AD per window (majority label of its frames), SG at
+    the end of the gap after every human placement (the guidance on screen against the truth), SC per screw (the
+    first control command issued during it). The robot places what the video shows it placed, if it was asked."""
+    cfg = detector.cfg
+    marks = checkpoints(clip, steps)
+    robot_jobs = {start: step.robot for step, start, _ in marks if step.kind == "screw"}
+    frame_index = {"now": 0}
+
+    def robot(part: str, position: int):
+        due = [s for s in robot_jobs if s <= frame_index["now"] and robot_jobs[s] is not None]
+        return robot_jobs.pop(due[-1]) if due else None
+
+    loop = SemanticPlannerLoop(planner, robot, echo=None)
+    stream = WindowStream(cfg.window, cfg.crop_size, cfg.frame_size, cfg.frame_stride)
+    with HandTracker(model_complexity=complexity) as tracker:
+        pipeline = ActionPipeline(detector, action_labels(spec), tracker, stream, loop)
+        shown: dict[int, list] = {}
+        due = {end: step for step, _, end in marks}
+        for k, frame in enumerate(clip.frames):
+            frame_index["now"] = k
+            state = pipeline.push(frame)
+            if k in due:
+                shown[k] = list(loop.pairs)
+            if annotated is not None:
+                annotated.append(annotate(frame, state, loop))
+    truth_assembled: set[int] = set()
+    sg, sc = [], []
+    for step, start, end in marks:
+        before = Scenario(goal, frozenset(truth_assembled))
+        if step.kind == "assemble":
+            truth_assembled.add(step.position)
+            now = Scenario(goal, frozenset(truth_assembled))
+            plan = planner.plan([shown[end]])[0]
+            sg.append(all(plan.guidance[t] == plan_tokens(spec, now, t) for t in spec.types))
+        else:
+            expected = next_object(spec, before)
+            events = [e for k, e in state.events if start <= k <= end and e.label == SCREW]
+            sc.append(bool(events) and events[0].plan.next_object == expected
+                      and events[0].plan.control == plan_tokens(spec, before, expected))
+            truth_assembled.add(step.robot[1])
+    ad = []
+    for window in state.windows:
+        labels = [x for x in clip.labels[window.start : window.end] if x != "none"]
+        if labels:
+            ad.append(window.label == max(set(labels), key=labels.count))
+    return {"ad": ad, "sg": sg, "sc": sc, "tracking_s": state.tracking_s, "classify_s": state.classify_s}
