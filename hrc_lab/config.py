@@ -58,8 +58,10 @@ LOGGERS.register("mlflow", LoggerConfig, "hrc_lab.tracking:RunTracker")
 @dataclass
 class TrainerConfig:
     """The Lightning ``Trainer`` arguments a run may set, with their defaults (written here only: the files in
-    ``conf/trainer`` name what differs). One epoch is ``steps_per_epoch`` batches of the module being trained, so
-    ``max_epochs`` fixes the training length; add an argument here to expose it."""
+    ``conf/trainer`` name what differs). A fixed-step model trains its group's ``steps`` split into ``max_epochs``
+    epochs (``hrc_lab.training.steps_per_epoch``), so ``max_epochs`` sets how often metrics are logged and
+    checkpoints saved; the Ch.5 action detector trains ``max_epochs`` full passes. ``max_steps`` caps every fit.
+    Add an argument here to expose it."""
 
     accelerator: str = "cpu"
     devices: Any = 1

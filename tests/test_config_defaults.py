@@ -2,7 +2,7 @@
 
 Each group file ``conf/<group>/<file>.yaml`` extends the schema of the name it composes to (``schema/<group>/<name>``
 in Hydra's ConfigStore; the trainer's is :class:`hrc_lab.config.TrainerConfig`), and each experiment file's
-``protocol`` node is validated against the protocol schema of its ``name`` (:mod:`hrc_lab.experiments.protocols`).
+``protocol`` node is validated against the protocol schema of its ``name`` (:mod:`hrc_lab.experiments.schemas`).
 A file is read raw (not composed), so a value it inherits from a parent yaml is counted in the parent only; a value
 equal to the default is allowed where it resets a different value inherited from a parent file.
 

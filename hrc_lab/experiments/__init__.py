@@ -1,5 +1,8 @@
-"""Experiment protocols, one per thesis table or figure; see :mod:`hrc_lab.experiments.protocols`."""
+"""Experiment protocols: what one Hydra job of a thesis table or figure does, one module per chapter
+(``ch3_motion``, ``ch4_reasoning``, ``ch4_motion``, ``ch5_planner``, ``ch5_perception``, ``ch6_grasp``, ``collect``).
+:mod:`hrc_lab.experiments.schemas` holds their config schemas and the ``PROTOCOLS`` registry (``protocol.name``
+-> schema, protocol function), light enough to validate a config without importing torch."""
 
-from hrc_lab.experiments.protocols import PROTOCOLS
+from hrc_lab.experiments.schemas import PROTOCOLS
 
 __all__ = ["PROTOCOLS"]
