@@ -166,6 +166,7 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
         if not isinstance(cfg.get(key), int) or cfg.get(key) < minimum:
             raise ConfigError(f"{key}: must be an integer >= {minimum}, got {cfg.get(key)!r}")
     trainer = _validate_trainer(cfg.trainer)
+    _check_combination(cfg)
     resume_from = cfg.get("resume_from")
     if resume_from is not None and not (isinstance(resume_from, str) and re.fullmatch(r"[0-9a-f]{32}", resume_from)):
         raise ConfigError(f"resume_from: must be the 32-character id of an MLflow run, got {resume_from!r}")
@@ -195,9 +196,24 @@ def _validate_paths(node: DictConfig) -> PathsConfig:
         raise ConfigError(f"paths.{getattr(err, 'full_key', '?')}: {str(err).splitlines()[0]}") from None
 
 
+def _check_combination(cfg: DictConfig) -> None:
+    """The protocol runs with this env and these modules (``ACCEPTS`` in :mod:`hrc_lab.experiments.schemas`);
+    checked on the names before any group is validated, so a wrong group is named as such."""
+    from hrc_lab.experiments.schemas import ACCEPTS, GROUPS, check_combination
+
+    protocol = (cfg.get("protocol") or {}).get("name")
+    if protocol not in ACCEPTS:
+        return  # PROTOCOLS.validate names the problem
+    names = {group: (cfg.get(group) or {}).get("name", "none") for group in GROUPS}
+    try:
+        check_combination(protocol, names)
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
+
+
 def _check_across_groups(validated: ValidatedConfig) -> None:
-    """Checks that relate two groups: a protocol schema may define ``check(validated)``, raising ``ValueError``
-    (or :class:`ConfigError`) that names the keys, e.g. ``protocol.object_counts`` against ``env.max_counts``."""
+    """The protocol schema's own ``check(validated)``, relating its values to other groups' (e.g.
+    ``protocol.object_counts`` against ``env.max_counts``). A ``ValueError`` becomes a :class:`ConfigError`."""
     check = getattr(validated.protocol, "check", None)
     if check is None:
         return

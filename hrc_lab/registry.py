@@ -76,7 +76,8 @@ class Registry:
             config = OmegaConf.to_object(OmegaConf.merge(_writable(OmegaConf.structured(entry.schema)), body))
         except OmegaConfBaseException as err:
             key = getattr(err, "full_key", None) or "?"
-            raise ConfigError(f"{path}.{key}: {str(err).splitlines()[0]}") from None
+            key = key if key.startswith(f"{path}.") else f"{path}.{key}"  # a resolved interpolation names it in full
+            raise ConfigError(f"{key}: {str(err).splitlines()[0]}") from None
         except (ValueError, TypeError) as err:  # raised by the schema's own checks (__post_init__)
             raise ConfigError(str(err)) from None
         return named(config, node.name)

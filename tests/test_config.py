@@ -37,15 +37,16 @@ def test_every_experiment_config_composes_and_validates(compose_config, experime
         ("env.sim.case=3", "env.sim.case"),
         ("env.sim.success_threshold=-0.1", "env.sim.success_threshold"),
         ("+env.sim.horizn=5", "env.sim.horizn"),
-        ("env=error_correction env.task=juggle", "env.task"),
-        ("env=error_correction_place env.sim.case=2", "env.sim.case"),
+        ("experiment=ch3/table_3_1 env.task=juggle", "env.task"),
+        ("experiment=ch3/table_3_1 env=error_correction_place env.sim.case=2", "env.sim.case"),
     ],
 )
 def test_bad_values_fail_naming_the_key(compose_config, override, key):
     """A wrong type fails when Hydra composes (every group's schema is in its ConfigStore), an unknown key or an
     impossible value in validate_config; both name the key."""
     with pytest.raises((ConfigError, ConfigCompositionException), match=key.replace(".", r"\.")):
-        validate_config(compose_config("experiment=ch4/table_4_1", *override.split()))
+        experiment = [] if override.startswith("experiment=") else ["experiment=ch4/table_4_1"]
+        validate_config(compose_config(*experiment, *override.split()))
 
 
 def test_missing_experiment_is_explained(compose_config):

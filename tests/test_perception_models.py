@@ -18,7 +18,7 @@ from hrc_lab.perception.configs import ActionDetectorConfig
 from hrc_lab.perception.networks import LSTMFCN, ActionDetectorNet, FrameSequenceLSTM, PlainLSTM, VGGStyleCNN
 from hrc_lab.registry import ConfigError
 
-EXPERIMENT = "experiment=ch5/table_5_2_planner"
+EXPERIMENT = "experiment=ch5/table_5_2"
 BRANCHES = {  # name -> (temporal, spatial), thesis 5.4.1
     "hand_lstm_fcn": ("lstm_fcn", "crop"),
     "cnn_lstm": ("lstm", "crop"),
@@ -57,7 +57,8 @@ def perception_config(compose_config):
 
     def _config(name: str, *overrides: str) -> ActionDetectorConfig:
         if name not in COMPOSED:
-            COMPOSED[name] = OmegaConf.to_container(compose_config(EXPERIMENT, f"perception={name}").perception)
+            composed = compose_config(EXPERIMENT, f"perception={name}")
+            COMPOSED[name] = OmegaConf.to_container(composed.perception, resolve=True)
         return PERCEPTIONS.validate(OmegaConf.merge(COMPOSED[name], OmegaConf.from_dotlist(list(overrides))))
 
     return _config

@@ -209,3 +209,30 @@ def test_kill_then_resume_gives_the_uninterrupted_result(tmp_path, console_scrip
     assert epochs[0] > 0, "the resumed run trained from scratch"
     for metric in ("train_loss", "sr", "acc_o", "acc_g"):
         assert resumed.data.metrics[metric] == straight.data.metrics[metric], metric
+
+
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        (["experiment=ch4/fig_4_9", "reasoning=gnn"], r"reasoning: protocol ch4_fig_4_9 runs with reasoning=ours"),
+        (["experiment=ch6/table_6_1", "env=package_to_order"], r"env: protocol ch6_table_6_1 runs with env=clutter"),
+        (["experiment=ch3/table_3_1", "reasoning=ours"], r"reasoning: .* runs with reasoning=none"),
+        (["experiment=ch5/fig_5_6", "perception.window=30"], r"perception\.window=30 must equal env\.video\.window"),
+        (["experiment=ch6/table_6_1", "env.image_size=192", "grasp.detector.image_size=160"],
+         r"grasp\.detector\.image_size=160 must equal env\.image_size=192"),
+        (["experiment=ch4/practical", "protocol.max_missing=5"], r"protocol\.max_missing=5 must be < env\.n_objects"),
+    ],
+)
+def test_a_wrong_combination_fails_before_work(compose_config, overrides, message):
+    """A protocol declares the env and modules it runs with; settings shared by two groups are checked together."""
+    with pytest.raises(ConfigError, match=message):
+        validate_config(compose_config(*overrides))
+
+
+def test_shared_facts_are_interpolations(compose_config):
+    """The detector's input size and the action window follow the env unless a user sets them apart."""
+    grasp = validate_config(compose_config("experiment=ch6/table_6_1", "env.image_size=192",
+                                           "grasp.detector.image_size=192"))
+    assert grasp.grasp.detector.image_size == 192
+    perception = validate_config(compose_config("experiment=ch5/fig_5_6", "env.video.window=30"))
+    assert perception.perception.window == 30

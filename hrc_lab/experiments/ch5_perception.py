@@ -55,8 +55,6 @@ def clip_set(ctx: RunContext) -> dict:
 def action_set(ctx: RunContext) -> ActionSet:
     """The tracked clip set of every Table 5.1 action, from the cache when another job already built it."""
     settings = clip_set(ctx)
-    if ctx.cfg.perception.window != ctx.cfg.env.video.window:
-        raise ValueError(f"perception.window={ctx.cfg.perception.window} must equal env.video.window")
     return cached_action_set(cache_dir(ctx), **settings, workers=ctx.cfg.protocol.workers)
 
 

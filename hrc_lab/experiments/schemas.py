@@ -1,5 +1,8 @@
 """Protocol schemas (light: no torch import): ``protocol.name`` in an experiment file selects what one Hydra job
-runs, and the rest of the ``protocol`` node is validated against the schema registered with it."""
+runs, and the rest of the ``protocol`` node is validated against the schema registered with it. ``ACCEPTS`` says
+which env and modules each protocol runs with; :func:`check_combination` rejects any other combination before work
+(called by :func:`hrc_lab.config.validate_config`), and a schema's ``check(validated)`` relates its values to
+other groups'."""
 
 from __future__ import annotations
 
@@ -64,6 +67,12 @@ class PracticalProtocol:
             raise ValueError(f"protocol.max_missing must be >= 1, got {self.max_missing}")
         if any(n > self.slots for n in [self.train_selected, *self.test_selected]):
             raise ValueError(f"protocol.slots={self.slots} must hold every order size {self.test_selected}")
+
+    def check(self, validated) -> None:
+        """Against the env: at least one product stays present."""
+        if self.max_missing >= validated.env.n_objects:
+            raise ValueError(f"protocol.max_missing={self.max_missing} must be < "
+                             f"env.n_objects={validated.env.n_objects}")
 
 
 @dataclass
@@ -140,6 +149,12 @@ class ActionClipsProtocol:
             raise ValueError(f"protocol.tracker_complexity must be 0 (lite) or 1 (full), got {self.tracker_complexity}")
         if self.workers < 1:
             raise ValueError(f"protocol.workers must be >= 1, got {self.workers}")
+
+    def check(self, validated) -> None:
+        """The detector reads the clips' windows: ``perception.window`` must equal ``env.video.window``."""
+        window, clip_window = validated.perception.window, validated.env.video.window
+        if window != clip_window:
+            raise ValueError(f"perception.window={window} must equal env.video.window={clip_window}")
 
 
 @dataclass
@@ -347,6 +362,12 @@ class Table61Protocol:
         if not self.request_sizes or any(k not in (1, 2, 3) for k in self.request_sizes):
             raise ValueError(f"protocol.request_sizes must be values in 1..3, got {self.request_sizes}")
 
+    def check(self, validated) -> None:
+        """The detector reads the rendered images unresized: ``grasp.detector.image_size`` = ``env.image_size``."""
+        size, rendered = validated.grasp.detector.image_size, validated.env.image_size
+        if size != rendered:
+            raise ValueError(f"grasp.detector.image_size={size} must equal env.image_size={rendered}")
+
 
 @dataclass
 class Table62SingleProtocol(Table61Protocol):
@@ -367,10 +388,8 @@ class Table62SingleProtocol(Table61Protocol):
     def check(self, validated) -> None:
         """Against the env (called by :func:`hrc_lab.config.validate_config`): a scene holds at most the parts that
         ``env.max_counts`` allows."""
-        max_counts = getattr(validated.env, "max_counts", None)
-        if max_counts is None:
-            raise ValueError(f"protocol.object_counts needs the clutter env (env.max_counts), got env "
-                             f"'{validated.raw.env.name}'")
+        super().check(validated)
+        max_counts = validated.env.max_counts
         most = sum(max_counts.values())
         if max(self.object_counts) > most:
             raise ValueError(f"protocol.object_counts must be values in 1..{most} (the sum of "
@@ -380,3 +399,43 @@ class Table62SingleProtocol(Table61Protocol):
 CH6 = "hrc_lab.experiments.ch6_grasp"
 PROTOCOLS.register("ch6_table_6_1", Table61Protocol, f"{CH6}:table_6_1")
 PROTOCOLS.register("ch6_table_6_2_single", Table62SingleProtocol, f"{CH6}:table_6_2_single")
+
+
+# The env and modules each protocol runs with (names of conf/<group>/*.yaml); a group not listed must be "none".
+CH4_REASONERS = ("ours", "gnn", "gnn_task", "mlp", "rf")
+MOTION_PLANNERS = ("tc_vi", "tc_vi_indexed", "vi", "mlp", "gpr")
+ACTION_DETECTORS = ("hand_lstm_fcn", "cnn_lstm", "hand_cnn", "cnn_lstm_video")
+GRASP_SOLVERS = ("gnn_att", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att", "gvmrn_rf")
+ROBOT_CELLS = ("package_to_order", "error_correction")
+ACCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
+    "ch4_table_4_1": {"env": ("package_to_order",), "reasoning": CH4_REASONERS},
+    "ch4_fig_4_7": {"env": ("package_to_order",), "reasoning": CH4_REASONERS},
+    "ch4_practical": {"env": ("package_to_order",), "reasoning": CH4_REASONERS},
+    "ch4_fig_4_9": {"env": ("package_to_order",), "reasoning": ("ours",)},  # explains the chain GraphSAGE encoder
+    "ch4_table_4_2": {"env": ("package_to_order",), "motion": MOTION_PLANNERS},
+    "ch3_table_3_1": {"env": ("error_correction",), "motion": MOTION_PLANNERS},
+    "ch3_fig_3_10": {"env": ("error_correction",), "motion": MOTION_PLANNERS},
+    "ch5_fig_5_7": {"env": ("assemble_to_order",), "reasoning": ("semantic_planner",)},
+    "ch5_table_5_2_planner": {"env": ("assemble_to_order",), "reasoning": ("semantic_planner",)},
+    "ch5_fig_5_6": {"env": ("assemble_to_order",), "perception": ACTION_DETECTORS},
+    "ch5_table_5_2": {"env": ("assemble_to_order",), "reasoning": ("semantic_planner",),
+                      "perception": ACTION_DETECTORS},
+    "ch5_annotate": {"env": ("assemble_to_order",), "reasoning": ("semantic_planner",),
+                     "perception": ACTION_DETECTORS},
+    "collect": {"env": ROBOT_CELLS},
+    "render_demo": {"env": ROBOT_CELLS},
+    "ch6_table_6_1": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
+    "ch6_table_6_2_single": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
+}
+GROUPS = ("env", "reasoning", "motion", "perception", "grasp")
+
+
+def check_combination(protocol: str, names: dict[str, str]) -> None:
+    """Raise ``ValueError`` naming the group when ``names`` (group -> the run's choice, "none" for none) is not a
+    combination protocol ``protocol`` runs with."""
+    accepts = ACCEPTS[protocol]
+    for group in GROUPS:
+        allowed = accepts.get(group, ("none",))
+        if names[group] not in allowed:
+            choose = " or ".join(f"{group}={a}" for a in allowed)
+            raise ValueError(f"{group}: protocol {protocol} runs with {choose}, got {group}={names[group]}")
