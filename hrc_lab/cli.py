@@ -31,9 +31,10 @@ log = logging.getLogger("hrc_lab")
 
 
 def method_of(cfg: DictConfig) -> str:
-    """The method a run compares: the first of its perception, reasoning, motion and grasp modules that is not
-    "none" (a Ch.5 run with a trained action detector is named after the detector, not the planner it feeds)."""
-    for group in ("perception", "reasoning", "motion", "grasp"):
+    """The method a run compares: the first of its rl, perception, reasoning, motion and grasp modules that is not
+    "none" (a Ch.5 run with a trained action detector is named after the detector, not the planner it feeds; a
+    guided RL run after its agent, not the planner that guides it)."""
+    for group in ("rl", "perception", "reasoning", "motion", "grasp"):
         name = (cfg.get(group) or {}).get("name", "none")
         if name != "none":
             return name

@@ -29,6 +29,7 @@ TOP_LEVEL_KEYS = {
     "motion",
     "perception",
     "grasp",
+    "rl",
     "trainer",
     "logger",
     "paths",
@@ -106,9 +107,10 @@ def group_registries() -> dict[str, Registry]:
     from hrc_lab.motion import MOTIONS
     from hrc_lab.perception import PERCEPTIONS
     from hrc_lab.reasoning import REASONERS
+    from hrc_lab.rl import RLS
 
     return {"env": ENVS, "reasoning": REASONERS, "motion": MOTIONS, "perception": PERCEPTIONS, "grasp": GRASPS,
-            "logger": LOGGERS}
+            "rl": RLS, "logger": LOGGERS}
 
 
 def register_schemas() -> None:
@@ -134,6 +136,7 @@ class ValidatedConfig:
     motion: Any
     perception: Any
     grasp: Any
+    rl: Any
     protocol: Any
     logger: LoggerConfig
     trainer: TrainerConfig
@@ -171,7 +174,7 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
     if resume_from is not None and not (isinstance(resume_from, str) and re.fullmatch(r"[0-9a-f]{32}", resume_from)):
         raise ConfigError(f"resume_from: must be the 32-character id of an MLflow run, got {resume_from!r}")
     modules = {}
-    for group in ("reasoning", "motion", "perception", "grasp"):
+    for group in ("reasoning", "motion", "perception", "grasp", "rl"):
         node = cfg.get(group)
         modules[group] = None if node is None or node.get("name") == "none" else registries[group].validate(node)
     validated = ValidatedConfig(

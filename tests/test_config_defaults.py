@@ -29,7 +29,7 @@ from hrc_lab.experiments import PROTOCOLS
 from hrc_lab.motion.configs import SubgoalConfig
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
-GROUPS = ("env", "reasoning", "motion", "perception", "grasp")
+GROUPS = ("env", "reasoning", "motion", "perception", "grasp", "rl")
 SKIPPED_KEYS = {"name", "defaults"}
 
 

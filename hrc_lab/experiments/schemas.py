@@ -427,7 +427,7 @@ ACCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
     "ch6_table_6_1": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
     "ch6_table_6_2_single": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
 }
-GROUPS = ("env", "reasoning", "motion", "perception", "grasp")
+GROUPS = ("env", "reasoning", "motion", "perception", "grasp", "rl")
 
 
 def check_combination(protocol: str, names: dict[str, str]) -> None:

@@ -1,0 +1,187 @@
+"""DDPG + HER agents built from an ``rl`` config (stable-baselines3), training by episodes, evaluation and
+checkpoints.
+
+``RLS.build(cfg, env=..., seed=...)`` gives :func:`build_ddpg_her` (``rl=ddpg_her``: the DRL baseline of 3.3 and
+Table 4.3) or, with ``guide=...``, :func:`build_guided_ddpg_her` (``rl=ddpg_her_guided``: Algorithm 1,
+:mod:`hrc_lab.rl.guidance`). Both are stable-baselines3's DDPG (one critic, no target smoothing) with its
+``HerReplayBuffer`` on the goal env of :mod:`hrc_lab.rl.goal_env`; exploration adds Gaussian noise to the
+[-1, 1] actions. A checkpoint (:func:`save_agent`) is a folder with SB3's ``agent.zip`` and, when it is small
+enough, the gzipped replay buffer (``replay_buffer.pkl.gz``), which :func:`load_agent` restores to resume.
+"""
+
+from __future__ import annotations
+
+import gzip
+import pathlib
+import pickle
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from stable_baselines3 import DDPG, HerReplayBuffer
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.noise import NormalActionNoise
+
+from hrc_lab.rl.configs import RLConfig
+from hrc_lab.rl.goal_env import HRCGoalEnv
+from hrc_lab.rl.guidance import GuidedDDPG
+
+AGENT_FILE = "agent.zip"
+BUFFER_FILE = "replay_buffer.pkl.gz"
+MAX_BUFFER_BYTES = 256 * 2**20  # by default the replay buffer is saved while its transitions take at most this
+
+
+def ddpg_her_kwargs(cfg: RLConfig, env: HRCGoalEnv, seed: int) -> dict[str, Any]:
+    """The arguments of stable-baselines3's ``DDPG`` for an ``rl`` config."""
+    n_actions = env.action_space.shape[0]
+    return {
+        "policy": "MultiInputPolicy",
+        "env": env,
+        "learning_rate": cfg.learning_rate,
+        "buffer_size": cfg.buffer_size,
+        "learning_starts": cfg.learning_starts,
+        "batch_size": cfg.batch_size,
+        "tau": cfg.tau,
+        "gamma": cfg.gamma,
+        "train_freq": (cfg.train_freq, "episode"),
+        "gradient_steps": cfg.gradient_steps,
+        "action_noise": NormalActionNoise(np.zeros(n_actions), np.full(n_actions, cfg.action_noise_std)),
+        "replay_buffer_class": HerReplayBuffer,
+        "replay_buffer_kwargs": {"n_sampled_goal": cfg.n_sampled_goal,
+                                 "goal_selection_strategy": cfg.goal_selection_strategy},
+        "policy_kwargs": {"net_arch": list(cfg.net_arch)},
+        "seed": seed,
+        "device": "cpu",
+        "verbose": 0,
+    }
+
+
+def build_ddpg_her(cfg: RLConfig, env: HRCGoalEnv, seed: int = 0) -> DDPG:
+    """``rl=ddpg_her``: unguided DDPG + HER."""
+    if cfg.guidance != "none":
+        raise ValueError(f"rl.guidance: ddpg_her is the unguided agent, got guidance '{cfg.guidance}'; "
+                         "use rl=ddpg_her_guided")
+    return DDPG(**ddpg_her_kwargs(cfg, env, seed))
+
+
+def build_guided_ddpg_her(cfg: RLConfig, env: HRCGoalEnv, guide: Any, seed: int = 0) -> GuidedDDPG:
+    """``rl=ddpg_her_guided``: Algorithm 1 with the trained two-level planner ``guide`` (e.g. a
+    :class:`~hrc_lab.rl.guidance.CorrectionGuide`); lambda, delta_g from the config, the per-episode draws from a
+    generator seeded with ``seed``."""
+    if cfg.guidance == "none":
+        raise ValueError("rl.guidance: ddpg_her_guided needs 'ndp' or 'ndp_direction' (for no guidance use "
+                         "rl=ddpg_her, or rl.lam=0 for the pure-exploration arm of Fig. 3.13)")
+    expected = "direction" if cfg.guidance == "ndp_direction" else "regression"
+    mode = getattr(guide, "ndp_mode", None)
+    if mode is not None and mode != expected:
+        raise ValueError(f"rl.guidance={cfg.guidance} needs a dynamic planner with motion.ndp.mode={expected}, "
+                         f"got {mode}")
+    return GuidedDDPG(guide=guide, lam=cfg.lam, delta_g=cfg.delta_g, guidance_seed=seed,
+                      **ddpg_her_kwargs(cfg, env, seed))
+
+
+class EpisodeMetrics(BaseCallback):
+    """Every ``every`` episodes, ``log(metrics, step)`` (e.g. ``RunTracker.log_metrics``) with the success rate
+    and collision rate of those episodes (their last step's ``is_success`` and ``collided``) and, for a
+    :class:`GuidedDDPG`, the guidance rate so far (corrected steps / steps); ``step`` is the episode count."""
+
+    def __init__(self, log: Callable[..., None], every: int = 10, prefix: str = "train_") -> None:
+        super().__init__()
+        self.log, self.every, self.prefix = log, every, prefix
+        self.success: list[bool] = []
+        self.collided: list[bool] = []
+
+    def _on_step(self) -> bool:
+        for done, info in zip(self.locals["dones"], self.locals["infos"]):
+            if done:
+                self.success.append(bool(info["is_success"]))
+                self.collided.append(bool(info["collided"]))
+        if len(self.success) >= self.every:
+            metrics = {f"{self.prefix}success_rate": float(np.mean(self.success)),
+                       f"{self.prefix}collision_rate": float(np.mean(self.collided))}
+            if isinstance(self.model, GuidedDDPG):
+                metrics[f"{self.prefix}guidance_rate"] = self.model.guidance_rate
+            horizon = self.model.get_env().envs[0].unwrapped.horizon
+            self.log(metrics, step=self.model.num_timesteps // horizon)
+            self.success, self.collided = [], []
+        return True
+
+
+def learn_episodes(agent: DDPG, episodes: int, callback: BaseCallback | None = None) -> DDPG:
+    """Train until the agent has run ``episodes`` episodes in all (a resumed agent continues its count). Every
+    episode of the goal env has ``horizon`` steps, so this is ``episodes x horizon`` control steps, and the last
+    episode is stored and trained on like the others."""
+    horizon = agent.get_env().envs[0].unwrapped.horizon
+    remaining = episodes - agent.num_timesteps // horizon
+    if remaining > 0:
+        agent.learn(total_timesteps=remaining * horizon, callback=callback,
+                    reset_num_timesteps=agent.num_timesteps == 0)
+    return agent
+
+
+def evaluate(agent: DDPG, env: HRCGoalEnv, episodes: int, seed: int = 0) -> dict[str, float]:
+    """Success rate (Eq. 3.7 / 4.7 at the episode's last step), collision rate and mean final goal distance of
+    the deterministic policy over ``episodes`` scenes (episode k seeded ``seed + k``)."""
+    success, collided, distance = [], [], []
+    for k in range(episodes):
+        obs, _ = env.reset(seed=seed + k)
+        truncated = terminated = False
+        while not (truncated or terminated):
+            action, _ = agent.predict(obs, deterministic=True)
+            obs, _, terminated, truncated, info = env.step(action)
+        success.append(info["is_success"])
+        collided.append(info["collided"])
+        distance.append(float(np.max(info["goal_distances"])))
+    return {"success_rate": float(np.mean(success)), "collision_rate": float(np.mean(collided)),
+            "final_distance": float(np.mean(distance))}
+
+
+# --- checkpoints ------------------------------------------------------------------------------------------------
+
+
+def _filled_bytes(buffer: Any) -> int:
+    """Bytes of the transitions stored so far (the arrays are allocated at ``rl.buffer_size``; gzip shrinks the
+    empty rest to almost nothing)."""
+    total = 0
+    for value in vars(buffer).values():
+        arrays = value.values() if isinstance(value, dict) else [value]
+        total += sum(a.nbytes for a in arrays if isinstance(a, np.ndarray))
+    return total * buffer.size() // buffer.buffer_size
+
+
+def save_agent(agent: DDPG, directory: str | pathlib.Path, replay_buffer: bool | None = None,
+               max_buffer_bytes: int = MAX_BUFFER_BYTES) -> list[pathlib.Path]:
+    """Save ``agent`` into ``directory``: SB3's ``agent.zip`` (networks, optimisers, counters, and a
+    :class:`GuidedDDPG`'s guidance state), plus the replay buffer, pickled and gzipped (``replay_buffer.pkl.gz``;
+    HER's buffer leaves its env out), when ``replay_buffer`` is True, or when None and the stored transitions take
+    at most ``max_buffer_bytes``. Returns the files written, for ``mlflow.log_artifact``."""
+    directory = pathlib.Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    agent.save(directory / AGENT_FILE)
+    written = [directory / AGENT_FILE]
+    if replay_buffer is None:
+        replay_buffer = _filled_bytes(agent.replay_buffer) <= max_buffer_bytes
+    if replay_buffer:
+        with gzip.open(directory / BUFFER_FILE, "wb", compresslevel=1) as file:
+            pickle.dump(agent.replay_buffer, file, protocol=pickle.HIGHEST_PROTOCOL)
+        written.append(directory / BUFFER_FILE)
+    return written
+
+
+def load_agent(directory: str | pathlib.Path, env: HRCGoalEnv, guide: Any = None) -> DDPG:
+    """The agent saved by :func:`save_agent`, on ``env``; a :class:`GuidedDDPG` when ``guide`` is given (the
+    guide is not saved). A saved replay buffer is restored as ``OffPolicyAlgorithm.load_replay_buffer`` does
+    (HER's buffer gets the env back, an unfinished last episode is closed), so :func:`learn_episodes` continues
+    where the saved run stopped."""
+    directory = pathlib.Path(directory)
+    cls = GuidedDDPG if guide is not None else DDPG
+    agent = cls.load(directory / AGENT_FILE, env=env, device="cpu")
+    if guide is not None:
+        agent.guide = guide
+    if (directory / BUFFER_FILE).exists():
+        with gzip.open(directory / BUFFER_FILE, "rb") as file:
+            agent.replay_buffer = pickle.load(file)
+        if isinstance(agent.replay_buffer, HerReplayBuffer):
+            agent.replay_buffer.set_env(agent.get_env())
+            agent.replay_buffer.truncate_last_trajectory()
+    return agent

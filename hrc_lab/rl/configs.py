@@ -1,0 +1,89 @@
+"""Config schema of the reinforcement-learning agents (light: no torch or stable-baselines3 import), and their
+registry.
+
+``ddpg_her`` is the DRL baseline of 3.3 and of Table 4.3 (DDPG with a HER replay buffer, sparse reward);
+``ddpg_her_guided`` is Algorithm 1 (3.2.3): the same agent whose exploration the two-level planner corrects in a
+fraction ``lam`` of the episodes. The thesis gives the algorithms, the guidance ratio lambda (0.7, 1 and 0 in
+Fig. 3.13), delta_g = 0.05 m, delta_r = 0.01 m and 40 steps per subtask (3.4.3), and the training lengths (550
+epochs in Fig. 3.13, 5000 iterations in Table 4.3); the DDPG and HER hyper-parameters below it does not give, and
+they are those of the HER paper (Andrychowicz et al. 2017, ref. [19]) unless a comment says otherwise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from hrc_lab.registry import Registry
+
+RLS = Registry("rl")
+
+GUIDANCES = ("none", "ndp", "ndp_direction")
+GOAL_STRATEGIES = ("future", "final", "episode")  # stable-baselines3's GoalSelectionStrategy values
+
+
+@dataclass
+class RLConfig:
+    """DDPG + HER and Algorithm 1's guidance (:mod:`hrc_lab.rl.agent`, :mod:`hrc_lab.rl.guidance`)."""
+
+    # --- episodes (3.3, 3.4.3) ---
+    episodes: int = 550  # training episodes (Fig. 3.13: 550 epochs; Table 4.3's DRL: 5000 iterations)
+    steps_per_subtask: int = 40  # control steps per pick-and-place subtask (3.4.3: "the max step is 40")
+    delta_r: float | None = None  # delta_r of Eq. 3.6 / 4.7 while training; null: env.sim.success_threshold
+    # --- DDPG (HER paper: Adam 1e-3, 3 x 256 ReLU layers, batch 256, gamma 0.98, polyak 0.95, 20 % Gaussian noise) ---
+    learning_rate: float = 1e-3
+    net_arch: list[int] = field(default_factory=lambda: [256, 256, 256])  # actor and critic hidden layers
+    batch_size: int = 256
+    gamma: float = 0.98
+    tau: float = 0.05  # soft target update, 1 - polyak
+    action_noise_std: float = 0.2  # std of the Gaussian exploration noise on the [-1, 1] actions
+    buffer_size: int = 1_000_000
+    learning_starts: int = 1000  # random-action warm-up steps (not in the thesis; SB3 default is 100)
+    # Algorithm 1 collects an episode, then updates: train every ``train_freq`` episodes with ``gradient_steps``
+    # gradient steps (-1: as many as control steps were collected)
+    train_freq: int = 1
+    gradient_steps: int = -1
+    # --- HER (ref. [19]: k = 4 goals per transition, "future" strategy) ---
+    n_sampled_goal: int = 4
+    goal_selection_strategy: str = "future"
+    # --- Algorithm 1 (3.2.3) ---
+    guidance: str = "none"  # none | ndp (d regresses joint deltas) | ndp_direction (d gives -1/0/1 per joint, 3.3)
+    lam: float = 0.7  # guidance ratio lambda: the probability that an episode is guided (Fig. 3.13: 0.7, 1, 0)
+    delta_g: float = 0.05  # guidance threshold delta_g, m: correct when |p'_T - p_{t+1}| > delta_g
+    # H_lo: control steps on one sub-goal before the next is planned (the thesis does not give it; Ch.3's
+    # two-level execution allows 30), and the distance at which the sub-goal counts as reached before that
+    subgoal_steps: int = 30
+    subgoal_tolerance: float = 0.008
+
+    def __post_init__(self) -> None:
+        for key in ("episodes", "steps_per_subtask", "batch_size", "buffer_size", "train_freq", "n_sampled_goal",
+                    "subgoal_steps"):
+            if getattr(self, key) < 1:
+                raise ValueError(f"rl.{key} must be >= 1, got {getattr(self, key)}")
+        for key in ("learning_rate", "action_noise_std", "delta_g", "subgoal_tolerance"):
+            if not getattr(self, key) > 0:
+                raise ValueError(f"rl.{key} must be > 0, got {getattr(self, key)}")
+        if self.delta_r is not None and not 0 < self.delta_r < 0.5:
+            raise ValueError(f"rl.delta_r must be in (0, 0.5) m or null (env.sim.success_threshold), "
+                             f"got {self.delta_r}")
+        if not self.net_arch or min(self.net_arch) < 1:
+            raise ValueError(f"rl.net_arch must be a non-empty list of layer widths >= 1, got {self.net_arch}")
+        if not 0 < self.gamma <= 1:
+            raise ValueError(f"rl.gamma must be in (0, 1], got {self.gamma}")
+        if not 0 < self.tau <= 1:
+            raise ValueError(f"rl.tau must be in (0, 1], got {self.tau}")
+        if self.learning_starts < 0:
+            raise ValueError(f"rl.learning_starts must be >= 0, got {self.learning_starts}")
+        if self.gradient_steps == 0 or self.gradient_steps < -1:
+            raise ValueError(f"rl.gradient_steps must be >= 1 or -1 (one per collected step), "
+                             f"got {self.gradient_steps}")
+        if self.goal_selection_strategy not in GOAL_STRATEGIES:
+            raise ValueError(f"rl.goal_selection_strategy must be one of {list(GOAL_STRATEGIES)}, "
+                             f"got '{self.goal_selection_strategy}'")
+        if self.guidance not in GUIDANCES:
+            raise ValueError(f"rl.guidance must be one of {list(GUIDANCES)}, got '{self.guidance}'")
+        if not 0 <= self.lam <= 1:
+            raise ValueError(f"rl.lam must be in [0, 1], got {self.lam}")
+
+
+RLS.register("ddpg_her", RLConfig, "hrc_lab.rl.agent:build_ddpg_her")
+RLS.register("ddpg_her_guided", RLConfig, "hrc_lab.rl.agent:build_guided_ddpg_her")

@@ -1,0 +1,188 @@
+"""Algorithm 1 (thesis 3.2.3, results 3.4.3, Fig. 3.13): hybrid hierarchical guided RL, as DDPG + HER whose
+exploration the trained two-level planner corrects.
+
+Per episode, with probability lambda (drawn from the agent's own seeded generator), the episode is guided: the
+classifier c(x_1) names the object (the task label), and in every control step t of high-level step T
+
+    p'_T       = h(x_T, l_T)                        the sub-goal planner's current sub-goal
+    a_t        = the policy's action (with its exploration noise)
+    p_{t+1}    = FK(q_cmd + a_t)                    the lip after a_t, by forward kinematics, not by stepping
+    if |p'_T - p_{t+1}| > delta_g:                  (delta_g = 0.05 m)
+        a_t    = d(Delta_t),  Delta_t = p'_T - p_t  the neural dynamic planner's action
+
+and the executed a_t, corrected or not, is what the replay buffer stores. Unguided episodes are pure DDPG
+exploration; HER relabels both alike.
+
+In stable-baselines3 this is one override: :meth:`GuidedDDPG._sample_action`, which
+``OffPolicyAlgorithm.collect_rollouts`` calls for the action it executes and the action it stores, so the
+correction reaches the environment and the buffer and nothing else of the library changes. The correction rule
+itself is the pure function :func:`needs_correction`; :func:`corrected_action` builds the executed action.
+
+The guide is an object with the :class:`Guide` interface; :class:`CorrectionGuide` is the two-level planner of
+:mod:`hrc_lab.motion` in the error-correction cell (the classifier, the sub-goal planner and the dynamic planner
+as :func:`hrc_lab.motion.two_level.run_correction` uses them).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import numpy as np
+from stable_baselines3 import DDPG
+
+from hrc_lab.env.robot.cell import PICK, PLACE
+
+
+def needs_correction(predicted: np.ndarray, subgoal: np.ndarray, delta_g: float) -> bool:
+    """Algorithm 1's rule: correct the action when the lip it leads to, ``predicted`` (p_{t+1}), is farther than
+    ``delta_g`` from the sub-goal p'_T."""
+    return bool(np.linalg.norm(np.asarray(subgoal, dtype=float) - np.asarray(predicted, dtype=float)) > delta_g)
+
+
+def corrected_action(action: np.ndarray, joint_deltas: np.ndarray, suction: float) -> np.ndarray:
+    """The executed action in [-1, 1] when the guide corrects ``action``: the dynamic planner's [base, shoulder,
+    elbow] deltas (already in [-1, 1] units), the guide's suction command; a wrist-3 delta (``yaw_action``), which
+    the planner does not produce, stays the policy's."""
+    out = np.array(action, dtype=np.float32, copy=True)
+    out[:3] = np.clip(joint_deltas, -1.0, 1.0)
+    out[-1] = suction
+    return out
+
+
+class Guide(Protocol):
+    """What Algorithm 1 asks of the trained two-level planner in a guided episode (``env``: the
+    :class:`~hrc_lab.rl.goal_env.HRCGoalEnv`)."""
+
+    def reset(self, env: Any) -> None:
+        """A guided episode starts: classify the task from x_1."""
+
+    def subgoal(self, env: Any) -> np.ndarray:
+        """p'_T for this control step (called once per step of a guided episode)."""
+
+    def act(self, env: Any, subgoal: np.ndarray) -> tuple[np.ndarray, float]:
+        """d(Delta_t): [dq_base, dq_shoulder, dq_elbow] in radians, and a suction command (+1 on, -1 off)."""
+
+
+class CorrectionGuide:
+    """The two-level planner of Ch.3 guiding an error-correction subtask.
+
+    ``classifier`` c(x) (x = three object positions, end effector; :class:`~hrc_lab.motion.subgoal.StageClassifier`)
+    names the object at the episode's start; ``planner`` h (:class:`~hrc_lab.motion.subgoal.SubgoalPlanner`)
+    proposes ``n_subgoals`` sub-goals per stage from [object positions at the stage's start, lip]; ``ndp`` d
+    (:class:`~hrc_lab.motion.subgoal.DynamicPlanner`, regression or direction mode) acts towards the sub-goal.
+    The next sub-goal is planned once the lip is within ``tolerance`` of the current one or after
+    ``subgoal_steps`` steps (H_lo). The stage is picking until the cup holds the object, then placing (the
+    classifier is read once: a picking label per object, as in the closed loop of
+    :func:`~hrc_lab.motion.two_level.run_correction`). Suction as there: on from a picking stage's second
+    sub-goal and through placing, off once the last placing sub-goal is reached.
+    """
+
+    def __init__(self, classifier: Any, planner: Any, ndp: Any, n_subgoals: int = 5, subgoal_steps: int = 30,
+                 tolerance: float = 0.008) -> None:
+        self.classifier, self.planner, self.ndp = classifier, planner, ndp
+        self.n_subgoals, self.subgoal_steps, self.tolerance = n_subgoals, subgoal_steps, tolerance
+
+    @classmethod
+    def from_config(cls, cfg: Any, classifier: Any, planner: Any, ndp: Any, n_subgoals: int = 5) -> CorrectionGuide:
+        """H_lo and the reach tolerance from an ``rl`` config (``subgoal_steps``, ``subgoal_tolerance``)."""
+        return cls(classifier, planner, ndp, n_subgoals, cfg.subgoal_steps, cfg.subgoal_tolerance)
+
+    def reset(self, env: Any) -> None:
+        cell = env.cell
+        x = np.concatenate([cell.object_positions().ravel(), cell.eef_position()])
+        self.label = 2 * (int(self.classifier(x[None])[0]) // 2)  # picking label of the object c(x_1) names
+        self.object = self.label // 2 + 1  # labels count blue (1) and red (2)
+        self.stage, self.index, self.steps, self.done = PICK, 0, 0, False
+        self.objects = cell.object_positions().ravel()
+        self.current: np.ndarray | None = None
+
+    def subgoal(self, env: Any) -> np.ndarray:
+        cell = env.cell
+        if self.stage == PICK and cell.suction.held == self.object:  # picked: the placing stage starts
+            self.stage, self.label, self.index, self.done = PLACE, self.label + 1, 0, False
+            self.objects, self.current = cell.object_positions().ravel(), None
+        if self.current is not None and not self.done:
+            reached = np.linalg.norm(self.current - cell.eef_position()) < self.tolerance
+            if reached or self.steps >= self.subgoal_steps:
+                if self.index + 1 < self.n_subgoals:
+                    self.index, self.current = self.index + 1, None
+                else:
+                    self.done = True  # the stage's last sub-goal: hold it
+        if self.current is None:
+            x = np.concatenate([self.objects, env.lip()])
+            mean, _ = self.planner.predict(x[None], np.array([self.label]), np.array([self.index]))
+            self.current, self.steps = mean[0], 0
+        self.steps += 1
+        return self.current
+
+    def act(self, env: Any, subgoal: np.ndarray) -> tuple[np.ndarray, float]:
+        suction = (self.stage == PICK and self.index > 0) or (self.stage == PLACE and not self.done)
+        return self.ndp.act(env.lip(), subgoal), 1.0 if suction else -1.0
+
+    @property
+    def ndp_mode(self) -> str:
+        return self.ndp.config.mode
+
+
+class GuidedDDPG(DDPG):
+    """DDPG whose exploration Algorithm 1 corrects (module docstring). One environment (a DummyVecEnv of one
+    :class:`~hrc_lab.rl.goal_env.HRCGoalEnv`). ``guide`` is not saved with the agent: pass it again after
+    :meth:`load` (``hrc_lab.rl.agent.load_agent`` does)."""
+
+    def __init__(self, *args, guide: Guide | None = None, lam: float = 0.0, delta_g: float = 0.05,
+                 guidance_seed: int | None = None, **kwargs) -> None:
+        self.guide = guide
+        self.lam = lam
+        self.delta_g = delta_g
+        self.guidance_rng = np.random.default_rng(guidance_seed)
+        self.guided_episode = False
+        self.guidance_counts = {"steps": 0, "corrected": 0, "episodes": 0, "guided_episodes": 0}
+        self.episode_corrections: list[int] = []  # corrected steps of every episode so far (0 when unguided)
+        super().__init__(*args, **kwargs)
+
+    @property
+    def guidance_rate(self) -> float:
+        """Corrected steps / all collected steps."""
+        return self.guidance_counts["corrected"] / max(1, self.guidance_counts["steps"])
+
+    def _goal_env(self) -> Any:
+        envs = getattr(self.env, "envs", None)
+        if envs is None or len(envs) != 1:
+            raise ValueError("GuidedDDPG needs a DummyVecEnv of one HRCGoalEnv")
+        return envs[0].unwrapped
+
+    def _start_episode(self, env: Any) -> None:
+        self.guided_episode = bool(self.guidance_rng.random() < self.lam)
+        self.guidance_counts["episodes"] += 1
+        self.episode_corrections.append(0)
+        if self.guided_episode:
+            if self.guide is None:
+                raise ValueError("GuidedDDPG: a guided episode needs a guide (pass guide=..., also after load)")
+            self.guidance_counts["guided_episodes"] += 1
+            self.guide.reset(env)
+
+    def _sample_action(self, learning_starts: int, action_noise=None, n_envs: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        action, buffer_action = super()._sample_action(learning_starts, action_noise, n_envs)
+        env = self._goal_env()
+        if env.elapsed_steps == 0:
+            self._start_episode(env)
+        self.guidance_counts["steps"] += 1
+        if not self.guided_episode:
+            return action, buffer_action
+        subgoal = self.guide.subgoal(env)
+        if not needs_correction(env.predicted_lip(buffer_action[0]), subgoal, self.delta_g):
+            return action, buffer_action
+        deltas, suction = self.guide.act(env, subgoal)
+        buffer_action = corrected_action(buffer_action[0], np.asarray(deltas) / env.max_joint_step, suction)[None]
+        self.guidance_counts["corrected"] += 1
+        self.episode_corrections[-1] += 1
+        return self.policy.unscale_action(buffer_action), buffer_action
+
+    def dump_logs(self) -> None:
+        counts = self.guidance_counts
+        self.logger.record("guidance/rate", self.guidance_rate)
+        self.logger.record("guidance/guided_episodes", counts["guided_episodes"] / max(1, counts["episodes"]))
+        super().dump_logs()
+
+    def _excluded_save_params(self) -> list[str]:
+        return [*super()._excluded_save_params(), "guide"]

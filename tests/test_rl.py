@@ -1,0 +1,295 @@
+"""Reinforcement learning (thesis 3.2.3 Algorithm 1, 3.3, 3.4.3; the DRL baseline of Table 4.3): the goal env's
+sparse reward (Eq. 3.6 / 4.7) on batches, HER relabelling, Algorithm 1's correction rule and guidance ratio, a few
+guided and unguided DDPG + HER updates in the real error-correction cell, checkpoints, and the ``rl`` configs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import lightning.pytorch as pl
+import numpy as np
+import pytest
+import torch
+from hydra import compose, initialize_config_dir
+from hydra.core.global_hydra import GlobalHydra
+
+from hrc_lab.env.robot.settings import ErrorCorrectionConfig, PackageToOrderConfig, SimSettings
+from hrc_lab.motion.configs import NDPConfig, SubgoalConfig
+from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier, build_subgoal_planner
+from hrc_lab.registry import ConfigError, named
+from hrc_lab.rl import RLS
+from hrc_lab.rl.agent import (
+    EpisodeMetrics,
+    build_ddpg_her,
+    build_guided_ddpg_her,
+    evaluate,
+    learn_episodes,
+    load_agent,
+    save_agent,
+)
+from hrc_lab.rl.configs import RLConfig
+from hrc_lab.rl.goal_env import make_goal_env, sparse_reward
+from hrc_lab.rl.guidance import CorrectionGuide, corrected_action, needs_correction
+
+
+def correction_cell(**values) -> ErrorCorrectionConfig:
+    """An error-correction env config as validation makes it (carrying its registry name)."""
+    return named(ErrorCorrectionConfig(**values), "error_correction")
+
+
+def package_cell(**values) -> PackageToOrderConfig:
+    return named(PackageToOrderConfig(**values), "package_to_order")
+
+CONF = Path(__file__).resolve().parents[1] / "conf"
+STEPS = 8  # control steps per subtask in these tests (40 in the thesis)
+# small networks and batches; two episodes of warm-up, then one gradient step per collected step
+TINY = dict(steps_per_subtask=STEPS, learning_starts=2 * STEPS, batch_size=16, net_arch=[32, 32], buffer_size=2000)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_thread():
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+@pytest.fixture(scope="module")
+def env():
+    """Two-object correction, case 1, first subtask (blue from red's place to its own): goal [x, y, z, yaw]."""
+    return make_goal_env(correction_cell(task="two_object"), RLConfig(**TINY), seed=0, subtask=0)
+
+
+def eq_3_6(achieved: np.ndarray, desired: np.ndarray, delta_r: float, dims: int) -> float:
+    """Eq. 3.6 written out for one goal: 0 when every object's |P_obj - P_goal| is within delta_r, else -1."""
+    for k in range(len(achieved) // dims):
+        if np.sqrt(np.sum((achieved[k * dims:(k + 1) * dims] - desired[k * dims:(k + 1) * dims]) ** 2)) > delta_r:
+            return -1.0
+    return 0.0
+
+
+class FarGuide:
+    """A stub guide whose sub-goal lies 0.5 m beside the lip: every proposed action is corrected (by d = full
+    base step, full negative shoulder step, suction on)."""
+
+    def reset(self, env):
+        self.target = env.lip() + np.array([0.5, 0.0, 0.0])
+
+    def subgoal(self, env):
+        return self.target
+
+    def act(self, env, subgoal):
+        return np.array([env.max_joint_step, -env.max_joint_step, 0.0]), 1.0
+
+
+# --- the goal env ----------------------------------------------------------------------------------------------------
+
+
+def test_compute_reward_is_eq_3_6_on_batches_and_single_goals(env):
+    rng = np.random.default_rng(0)
+    desired = rng.uniform(-1, 1, (64, 8))  # two objects, [x, y, z, yaw] each
+    offsets = rng.normal(size=(64, 2, 4))
+    offsets /= np.linalg.norm(offsets, axis=-1, keepdims=True)
+    distances = rng.choice([0.0, 0.5, 0.99, 1.01, 3.0], (64, 2)) * env.delta_r  # in and out of delta_r
+    achieved = desired + (offsets * distances[..., None]).reshape(64, 8)
+    expected = [eq_3_6(a, d, env.delta_r, 4) for a, d in zip(achieved, desired)]
+    batch = sparse_reward(achieved, desired, env.delta_r, 4)
+    assert batch.shape == (64,) and batch.dtype == np.float32
+    np.testing.assert_array_equal(batch, expected)
+    assert {0.0, -1.0} <= set(batch.tolist())
+    single = env.compute_reward(achieved[0, :4], desired[0, :4], {})
+    assert single.shape == () and float(single) == eq_3_6(achieved[0, :4], desired[0, :4], env.delta_r, 4)
+    # a batch of batches (HER samples come as (batch, dim); vectorised envs add a leading axis)
+    np.testing.assert_array_equal(env.compute_reward(achieved[:, :4].reshape(8, 8, 4), desired[:, :4].reshape(8, 8, 4),
+                                                     {}), sparse_reward(achieved[:, :4], desired[:, :4],
+                                                                        env.delta_r, 4).reshape(8, 8))
+
+
+def test_goal_env_goal_is_the_labelled_objects_pose_and_the_step_reward_agrees(env):
+    obs, _ = env.reset(seed=3)
+    cell = env.cell
+    assert env.goal_objects == [cell.expert_plan()[0]] == [1]  # case 1: blue is corrected first
+    np.testing.assert_allclose(obs["desired_goal"], [*cell.goals[1], 0.0], atol=1e-6)
+    np.testing.assert_allclose(obs["achieved_goal"][:3], cell.object_positions()[1], atol=1e-6)
+    assert obs["observation"].shape == env.observation_space["observation"].shape == (6 + 3 + 4 + 3 * 4 + 1,)
+    obs, reward, terminated, truncated, info = env.step(np.zeros(4))
+    assert reward == env.compute_reward(obs["achieved_goal"], obs["desired_goal"], {}) == -1.0
+    assert not terminated and not truncated and info["is_success"] is False and info["collided"] is False
+    cell._set_object(1, cell.goals[1])  # blue at its goal: R = 0
+    cell.sim.forward()
+    obs, reward, *_ = env.step(np.zeros(4))
+    assert reward == 0.0 and env.goal_distances()[0] < env.delta_r
+    # the seeded scene repeats; the second subtask starts with blue at its goal and asks for red
+    first, _ = env.reset(seed=3)
+    np.testing.assert_array_equal(first["desired_goal"], env.reset(seed=3)[0]["desired_goal"])
+    second = make_goal_env(correction_cell(task="two_object"), RLConfig(**TINY), seed=0, subtask=1)
+    second.reset(seed=3)
+    assert second.goal_objects == [2] and second.cell.object_positions()[1] == pytest.approx(second.cell.goals[1])
+    with pytest.raises(ValueError, match="subtask must be in"):
+        make_goal_env(correction_cell(task="one_object"), RLConfig(**TINY), subtask=1)
+
+
+def test_package_goal_is_every_product_with_the_selected_ones_in_their_slots():
+    config = package_cell(n_objects=3, n_selected=2, sim=SimSettings(horizon=200))
+    goal_env = make_goal_env(config, RLConfig(**TINY), seed=0)
+    obs, _ = goal_env.reset(seed=1)
+    cell = goal_env.cell
+    assert goal_env.horizon == 2 * STEPS and obs["desired_goal"].shape == (9,)
+    selected = cell.episode.goal_slot >= 0
+    goals = obs["desired_goal"].reshape(3, 3)
+    np.testing.assert_allclose(goals[~selected], cell.object_positions()[~selected], atol=1e-5)  # the rest stay
+    np.testing.assert_allclose(goals[selected], cell.episode.packed_positions[selected], atol=1e-5)
+    assert goal_env.compute_reward(obs["achieved_goal"], obs["desired_goal"], {}) == -1.0
+    with pytest.raises(ValueError, match="n_missing"):
+        make_goal_env(package_cell(n_objects=3, n_selected=2, sim=SimSettings(n_missing=1)), RLConfig())
+
+
+# --- DDPG + HER ----------------------------------------------------------------------------------------------------
+
+
+def test_unguided_ddpg_her_updates_and_relabels_with_eq_3_6(env):
+    agent = build_ddpg_her(RLConfig(**TINY), env, seed=0)
+    before = [p.detach().clone() for p in agent.actor.parameters()]
+    learn_episodes(agent, 4)
+    assert agent.num_timesteps == 4 * STEPS and agent._n_updates == 2 * STEPS  # trained after episodes 3 and 4
+    assert any(not torch.equal(a, b) for a, b in zip(before, agent.actor.parameters()))
+    buffer = agent.replay_buffer
+    assert buffer.size() == 4 * STEPS
+    batch = buffer.sample(256)
+    desired = batch.observations["desired_goal"].numpy()
+    recomputed = env.compute_reward(batch.next_observations["achieved_goal"].numpy(), desired, {})
+    np.testing.assert_array_equal(batch.rewards.numpy().ravel(), recomputed)
+    # with n_sampled_goal=4, 80 % of the goals are relabelled to achieved goals of the same episode
+    stored = buffer.next_observations["achieved_goal"][: buffer.size(), 0]
+    original = buffer.observations["desired_goal"][: buffer.size(), 0]
+    relabelled = ~np.any(np.all(desired[:, None] == original[None], axis=-1), axis=1)
+    assert 0.5 < relabelled.mean() < 1.0
+    assert np.all(np.any(np.all(desired[relabelled][:, None] == stored[None], axis=-1), axis=1))
+    assert set(np.unique(recomputed)) == {0.0, -1.0}  # random motions leave blue in place: its pose is reached
+
+
+# --- Algorithm 1 ---------------------------------------------------------------------------------------------------
+
+
+def test_correction_rule_on_hand_made_states():
+    subgoal = np.array([0.3, 0.1, 1.0])
+    assert not needs_correction(subgoal + [0.0, 0.03, 0.0399], subgoal, 0.05)  # |.| = 0.04992: kept
+    assert not needs_correction(subgoal + [0.02, -0.02, 0.0], subgoal, 0.05)
+    assert needs_correction(subgoal + [0.0, 0.03, 0.0401], subgoal, 0.05)  # |.| = 0.05008: corrected
+    assert needs_correction(subgoal + [0.2, 0.0, 0.0], subgoal, 0.05)
+    assert not needs_correction(subgoal + [0.2, 0.0, 0.0], subgoal, 0.25)
+    # the executed action: the planner's joint deltas (clipped to [-1, 1]) and suction; wrist 3 stays the policy's
+    action = np.array([0.1, 0.2, 0.3, 0.4, -0.5])
+    np.testing.assert_allclose(corrected_action(action, np.array([0.5, -1.5, 0.0]), 1.0), [0.5, -1.0, 0.0, 0.4, 1.0])
+    np.testing.assert_allclose(action, [0.1, 0.2, 0.3, 0.4, -0.5])  # not modified in place
+
+
+@pytest.mark.parametrize("lam", [1.0, 0.0])
+def test_lambda_one_corrects_every_episode_and_zero_never(env, lam):
+    cfg = RLConfig(**TINY, guidance="ndp", lam=lam)
+    agent = build_guided_ddpg_her(cfg, env, FarGuide(), seed=0)
+    learn_episodes(agent, 3)
+    counts = agent.guidance_counts
+    assert counts["episodes"] == 3 and counts["steps"] == 3 * STEPS
+    if lam == 1.0:
+        assert counts["guided_episodes"] == 3 and agent.episode_corrections == [STEPS] * 3
+        assert agent.guidance_rate == 1.0
+        # the buffer stores the executed (corrected) action
+        stored = agent.replay_buffer.actions[: agent.replay_buffer.size(), 0]
+        np.testing.assert_allclose(stored[:, :3], np.tile([1.0, -1.0, 0.0], (3 * STEPS, 1)))
+        np.testing.assert_allclose(stored[:, 3], 1.0)
+    else:
+        assert counts["guided_episodes"] == 0 and agent.episode_corrections == [0] * 3
+        assert agent.guidance_rate == 0.0
+
+
+@pytest.fixture(scope="module")
+def two_level_guide(env):
+    """The real classifier, sub-goal planner and dynamic planner of hrc_lab.motion, fitted for a few steps on
+    made-up pairs whose sub-goals lie ~0.3 m from the arm's start (so the guide corrects)."""
+    rng = np.random.default_rng(0)
+    cell = env.cell
+    trainer = lambda: pl.Trainer(max_epochs=1, logger=False, enable_checkpointing=False,  # noqa: E731
+                                 enable_progress_bar=False, enable_model_summary=False)
+    x = np.hstack([np.tile(cell.object_positions().ravel(), (64, 1)), cell.eef_position() + rng.normal(0, 0.05,
+                                                                                                          (64, 3))])
+    labels = rng.integers(0, 4, 64)
+    classifier = StageClassifier(4, hidden=16, steps=5).fit(x, labels, trainer)
+    subgoals = cell.eef_position() + [0.3, 0.0, 0.1] + rng.normal(0, 0.02, (64, 3))
+    planner = build_subgoal_planner(SubgoalConfig(kind="mlp", steps=5, hidden=16), 4).fit(x, labels, subgoals,
+                                                                                           trainer)
+    r = x[:, 9:]
+    ndp = DynamicPlanner(NDPConfig(steps=5, hidden=16), cell.max_joint_step, cell.base_position())
+    ndp.fit(r, subgoals, rng.uniform(-1, 1, (64, 3)) * cell.max_joint_step, trainer)
+    return CorrectionGuide.from_config(RLConfig(**TINY, subgoal_steps=3), classifier, planner, ndp, n_subgoals=2)
+
+
+def test_guided_ddpg_her_with_the_two_level_planner_runs_updates_in_the_cell(env, two_level_guide):
+    agent = build_guided_ddpg_her(RLConfig(**TINY, guidance="ndp", lam=1.0), env, two_level_guide, seed=0)
+    logged = []
+    learn_episodes(agent, 3, EpisodeMetrics(lambda metrics, step: logged.append((step, metrics)), every=2))
+    assert [step for step, _ in logged] == [2] and set(logged[0][1]) == {
+        "train_success_rate", "train_collision_rate", "train_guidance_rate"}
+    assert agent._n_updates == STEPS and agent.guidance_counts["steps"] == 3 * STEPS
+    assert 0 < agent.guidance_counts["corrected"] <= 3 * STEPS
+    assert two_level_guide.object in (1, 2) and two_level_guide.index in (0, 1)
+    with pytest.raises(ValueError, match="rl.guidance=ndp_direction needs .*motion.ndp.mode=direction"):
+        build_guided_ddpg_her(RLConfig(**TINY, guidance="ndp_direction"), env, two_level_guide)
+
+
+def test_checkpoint_round_trip_resumes_training(env, tmp_path):
+    agent = build_guided_ddpg_her(RLConfig(**TINY, guidance="ndp", lam=0.5), env, FarGuide(), seed=0)
+    learn_episodes(agent, 3)
+    files = save_agent(agent, tmp_path / "ckpt")
+    assert [f.name for f in files] == ["agent.zip", "replay_buffer.pkl.gz"]
+    assert [f.name for f in save_agent(agent, tmp_path / "small", max_buffer_bytes=10)] == ["agent.zip"]
+    loaded = load_agent(tmp_path / "ckpt", env, guide=FarGuide())
+    obs = env.reset(seed=0)[0]
+    np.testing.assert_allclose(loaded.predict(obs, deterministic=True)[0], agent.predict(obs, deterministic=True)[0])
+    assert loaded.guidance_counts == agent.guidance_counts and loaded.replay_buffer.size() == 3 * STEPS
+    assert loaded.guidance_rng.random() == agent.guidance_rng.random()  # the per-episode draws continue
+    learn_episodes(loaded, 4)
+    assert loaded.num_timesteps == 4 * STEPS and loaded.guidance_counts["episodes"] == 4
+    assert loaded.replay_buffer.size() == 4 * STEPS
+    scores = evaluate(loaded, env, episodes=2)
+    assert set(scores) == {"success_rate", "collision_rate", "final_distance"} and 0 <= scores["success_rate"] <= 1
+
+
+# --- configs ---------------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("values,key", [
+    ({"lam": 1.5}, "rl.lam"),
+    ({"lam": -0.1}, "rl.lam"),
+    ({"delta_g": 0.0}, "rl.delta_g"),
+    ({"delta_g": -0.05}, "rl.delta_g"),
+    ({"guidance": "expert"}, "rl.guidance"),
+    ({"steps_per_subtask": 0}, "rl.steps_per_subtask"),
+    ({"goal_selection_strategy": "last"}, "rl.goal_selection_strategy"),
+    ({"lamda": 0.5}, "rl.lamda"),
+])
+def test_config_errors_name_the_key(values, key):
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+        RLS.validate({"name": "ddpg_her_guided", **values})
+
+
+def test_builders_reject_the_other_agents_guidance(env):
+    with pytest.raises(ValueError, match="rl.guidance: ddpg_her is the unguided agent"):
+        RLS.build(RLS.validate({"name": "ddpg_her", "guidance": "ndp"}), env=env)
+    with pytest.raises(ValueError, match="rl.guidance: ddpg_her_guided needs"):
+        RLS.build(RLS.validate({"name": "ddpg_her_guided", "guidance": "none"}), env=env, guide=FarGuide())
+
+
+def test_rl_yaml_files_compose_to_their_schemas():
+    RLS.store_schemas()  # hrc_lab.config.register_schemas does this once `rl` is one of its groups
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+            nodes = {name: compose(config_name=f"rl/{name}").rl for name in ("none", "ddpg_her", "ddpg_her_guided")}
+    finally:
+        GlobalHydra.instance().clear()
+    assert dict(nodes["none"]) == {"name": "none"}
+    unguided, guided = RLS.validate(nodes["ddpg_her"]), RLS.validate(nodes["ddpg_her_guided"])
+    assert unguided.name == "ddpg_her" and unguided.guidance == "none" and unguided.delta_r is None
+    assert guided.name == "ddpg_her_guided" and (guided.guidance, guided.lam, guided.delta_g) == ("ndp", 0.7, 0.05)
+    assert guided.delta_r == 0.01 and guided.steps_per_subtask == 40
