@@ -38,7 +38,10 @@ def ensure_experiment(client: MlflowClient, name: str, artifact_root: str) -> st
     if experiment is not None:
         return experiment.experiment_id
     location = None
-    if "://" not in artifact_root or artifact_root.startswith("file:"):
+    # A local artifact folder only for a local store: a server (http) keeps artifacts itself (proxied), so every
+    # client's runs land in the same place.
+    served = client.tracking_uri.startswith(("http://", "https://"))
+    if not served and ("://" not in artifact_root or artifact_root.startswith("file:")):
         folder = Path(artifact_root.removeprefix("file://")).resolve() / re.sub(r"[^\w.-]+", "_", name)
         location = folder.as_uri()
     try:

@@ -77,3 +77,20 @@ def test_report_command_writes_markdown_and_plot(joblib_sweep, tmp_path, capsys)
     assert (tmp_path / "ch4_reasoning" / plot).stat().st_size > 1000
     assert "## fig_4_7\n\nNo finished default runs yet" in report  # fig 4.7 and the others were not run here
     assert f"wrote {tmp_path / 'ch4_reasoning.md'}" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_submitit_local_sweep(tmp_path, console_script):
+    """submitit's real executor on local processes (the SLURM launcher's code path): a 2-job sweep lands as two
+    FINISHED runs from two processes. Slow (~40 s): CI runs it in its own step."""
+    pytest.importorskip("hydra_plugins.hydra_submitit_launcher", reason='pip install -e ".[cluster]"')
+    runs = tmp_path / "runs"
+    env = dict(os.environ, HRC_LAB_RUNS=str(runs), PYTHONWARNINGS="ignore")
+    command = [console_script("hrc-lab"), "-m", "experiment=ch4/table_4_1", "hydra/launcher=submitit_local",
+               "hydra.launcher.timeout_min=10", "env=package_to_order_2of3", "reasoning=ours,mlp", "seed=0", *TINY]
+    result = subprocess.run(command, capture_output=True, text=True, env=env, timeout=250)
+    assert result.returncode == 0, result.stderr[-3000:]
+    _, jobs = sweep_jobs(f"sqlite:///{runs / 'mlflow.db'}")
+    assert sorted(r.data.tags["method"] for r in jobs) == ["mlp", "ours"]
+    assert all(r.info.status == "FINISHED" for r in jobs)
+    assert len({r.data.tags["pid"] for r in jobs}) == 2  # one process per job

@@ -16,6 +16,9 @@ from hrc_lab.tracking import resolve_tracking_uri
 COMMANDS = {
     "table_3_1": "hrc-lab experiment=ch3/table_3_1 hydra/launcher=joblib",
     "fig_3_10": "hrc-lab experiment=ch3/fig_3_10 hydra/launcher=joblib",
+    "fig_3_13": "hrc-lab experiment=ch3/fig_3_13 hydra/launcher=joblib",
+    "fig_3_12": "hrc-lab experiment=ch3/fig_3_12 hydra/launcher=joblib",
+    "fig_3_9": "hrc-lab experiment=ch3/fig_3_9 hydra/launcher=joblib",
     "table_4_1": "hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib",
     "fig_4_7": "hrc-lab experiment=ch4/fig_4_7 hydra/launcher=joblib",
     "practical": "hrc-lab experiment=ch4/practical hydra/launcher=joblib",
@@ -122,5 +125,6 @@ def build_topic(topic: str, tracking_uri: str, out_dir: Path, sweep: str | None 
             stem = f"{table}_{variant}" if ablation else table
             body.append(write_section(section, out_dir / topic, tracking_uri, stem))
     path = out_dir / f"{topic}.md"
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(body))
     return path
