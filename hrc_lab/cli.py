@@ -35,9 +35,11 @@ def method_of(cfg: DictConfig) -> str:
     "none" (a Ch.5 run with a trained action detector is named after the detector, not the planner it feeds; a
     guided RL run after its agent, not the planner that guides it)."""
     for group in ("rl", "perception", "reasoning", "motion", "grasp"):
-        name = (cfg.get(group) or {}).get("name", "none")
+        node = cfg.get(group) or {}
+        name = node.get("name", "none")
         if name != "none":
-            return name
+            # a guided agent is also named by its guidance ratio: Fig. 3.13 compares lambda 0, 0.7 and 1
+            return f"{name}_lam{node.lam:g}" if group == "rl" and node.get("guidance", "none") != "none" else name
     return "none"
 
 

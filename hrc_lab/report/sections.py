@@ -52,6 +52,15 @@ TOPICS = {
         "The neural dynamic planner sees Δ = s − r in the arm's base frame (radial, tangential, vertical).",
         [("ch3/table_3_1", "table_3_1"), ("ch3/fig_3_10", "fig_3_10")],
     ),
+    "ch3_rl": (
+        "Ch.3 hybrid hierarchical guided RL (Algorithm 1): DDPG + HER guided by the two-level planner",
+        "Training runs in our robosuite UR5e error-correction cells (`hrc_lab/env/robot/correction_cell.py`) as a "
+        "gymnasium goal env (`hrc_lab/rl/goal_env.py`), not the thesis' CoppeliaSim UR10; the agent is "
+        "stable-baselines3's DDPG with its HER replay buffer (`hrc_lab/rl/agent.py`), the guide the two-level planner "
+        "trained on scripted-expert demonstrations (`hrc_lab/experiments/ch3_motion.py`). The thesis does not define "
+        "an epoch; ours is in each section (`hrc_lab/experiments/ch3_rl.py`).",
+        [("ch3/fig_3_13", "fig_3_13"), ("ch3/fig_3_12", "fig_3_12"), ("ch3/fig_3_9", "fig_3_9")],
+    ),
     "ch4_motion": (
         "Ch.4 motion module: task-conditioned sub-goal planner and neural dynamic planner vs. VI, GPR, MLP",
         "Closed-loop trials run in our robosuite UR5e cell (`hrc_lab/env/robot/`), not the thesis' CoppeliaSim UR10; "
@@ -103,6 +112,7 @@ TOPICS = {
 def load_sections() -> None:
     from hrc_lab.report import (  # noqa: F401  (registration)
         ch3_motion,
+        ch3_rl,
         ch4_motion,
         ch4_reasoning,
         ch5_perception,

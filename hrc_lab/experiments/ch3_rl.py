@@ -1,0 +1,253 @@
+"""Ch.3 hybrid hierarchical guided RL (thesis 3.2.3 Algorithm 1, 3.3, 3.4.3): Fig. 3.13 (error correction, guidance
+ratio lambda), Fig. 3.12 (place and stack, direction-only NDP guidance vs none) and Fig. 3.9 (the end effector's
+distance to the goal in guided vs unguided exploration).
+
+The two-level planner (task classifier c(x), sub-goal planner h, neural dynamic planner d) is trained from the
+scripted expert's demonstrations as in Table 3.1 (:func:`hrc_lab.experiments.ch3_motion.train_two_level`); it then
+guides a stable-baselines3 DDPG + HER agent (:mod:`hrc_lab.rl`) in a fraction ``rl.lam`` of the episodes.
+
+**Epoch** (our definition; the thesis does not give one): ``protocol.episodes_per_epoch`` training episodes of
+``rl.steps_per_subtask`` control steps each (after each episode, one gradient step per collected step once
+``rl.learning_starts`` steps were collected), then ``protocol.eval_episodes`` evaluation episodes of the
+deterministic policy on held-out scenes (no noise, no guidance). The subtasks of a correction plan are trained in
+sequence, one agent each, ``protocol.epochs`` epochs per subtask; epoch ``k * epochs + e`` of the run is epoch
+``e`` of subtask ``k``. Every epoch logs ``success_rate``, ``collision_rate``, ``final_distance`` (evaluation),
+``train_success_rate`` and ``train_collision_rate`` (that epoch's training episodes, exploration noise and guidance
+included), ``guidance_rate`` (corrected / collected steps of those episodes), ``env_steps_per_s`` (collected
+steps / time in rollout collection, guidance included) and ``updates_per_s`` (gradient steps / time in training)
+as MLflow metrics with ``step`` = the epoch.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from hrc_lab.env import ENVS
+from hrc_lab.experiments.context import RunContext
+
+AGENTS_DIR = "agents"
+
+
+class PhaseTimer:
+    """Wall time an SB3 off-policy agent spends collecting rollouts and training (wraps the two bound methods
+    ``learn`` calls, on this instance only)."""
+
+    def __init__(self, agent: Any) -> None:
+        self.collect_s = self.train_s = 0.0
+        collect, train = agent.collect_rollouts, agent.train
+
+        def timed_collect(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return collect(*args, **kwargs)
+            finally:
+                self.collect_s += time.perf_counter() - start
+
+        def timed_train(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return train(*args, **kwargs)
+            finally:
+                self.train_s += time.perf_counter() - start
+
+        agent.collect_rollouts, agent.train = timed_collect, timed_train
+
+
+def guided(ctx: RunContext) -> bool:
+    """Whether the run's agent is ever guided (``rl=ddpg_her_guided`` with lambda > 0)."""
+    return ctx.cfg.rl.name == "ddpg_her_guided" and ctx.cfg.rl.lam > 0
+
+
+def train_guide(ctx: RunContext):
+    """The Ch.3 two-level planner from ``protocol.demos`` expert demonstrations (as Table 3.1), as Algorithm 1's
+    guide (:class:`~hrc_lab.rl.guidance.CorrectionGuide`)."""
+    from hrc_lab.experiments.ch3_motion import correction_demos, train_two_level
+    from hrc_lab.rl.guidance import CorrectionGuide
+
+    protocol = ctx.cfg.protocol
+    env = ENVS.build(ctx.cfg.env, seed=ctx.seed)
+    demos = correction_demos(env, protocol.demos, protocol, f"demos {ctx.cfg.env.cell}", protocol.placement_noise,
+                             ctx.rng(5))
+    if not demos:
+        raise RuntimeError(f"no successful expert demonstration in {protocol.demos} for {ctx.cfg.env.cell}")
+    classifier, planner, ndp = train_two_level(ctx, env, demos)
+    ctx.tracker.log_torch_model(planner.network, "model/subgoal.pt")
+    ctx.tracker.log_torch_model(ndp.network, "model/ndp.pt")
+    return CorrectionGuide.from_config(ctx.cfg.rl, classifier, planner, ndp, protocol.subgoals_per_stage)
+
+
+def build_agent(ctx: RunContext, env, guide):
+    from hrc_lab.rl import RLS
+
+    if ctx.cfg.rl.name == "ddpg_her_guided":
+        return RLS.build(ctx.cfg.rl, env=env, guide=guide, seed=ctx.seed)
+    return RLS.build(ctx.cfg.rl, env=env, seed=ctx.seed)
+
+
+def save_checkpoint(ctx: RunContext, agent, subtask: int) -> None:
+    """The agent (and its replay buffer when small) under the run's ``agents/subtask<k>/``."""
+    from hrc_lab.rl.agent import save_agent
+
+    folder = f"{AGENTS_DIR}/subtask{subtask}"
+    save_agent(agent, ctx.output_dir / folder)
+    ctx.tracker.log_artifact(ctx.output_dir / folder, folder)
+
+
+EPOCH_METRICS = ("success_rate", "collision_rate", "final_distance", "train_success_rate", "train_collision_rate",
+                 "guidance_rate", "env_steps_per_s", "updates_per_s", "subtask")
+
+
+def resume_agent(ctx: RunContext, env, guide, subtask: int):
+    """With ``resume_from``: the killed run's latest agent of ``subtask`` (and its replay buffer when it was
+    saved), or None when that run saved none. (A lambda-0 agent loads as plain DDPG: it never corrects anyway.)"""
+    from hrc_lab.rl.agent import AGENT_FILE, BUFFER_FILE, load_agent
+
+    if not ctx.cfg.resume_from:
+        return None
+    folder = f"{AGENTS_DIR}/subtask{subtask}"
+    saved = ctx.tracker.resume_checkpoint(f"{folder}/{AGENT_FILE}")
+    if saved is None:
+        return None
+    ctx.tracker.resume_checkpoint(f"{folder}/{BUFFER_FILE}")  # into the same folder, when it exists
+    return load_agent(saved.parent, env, guide)
+
+
+def copy_history(ctx: RunContext, last_step: int) -> None:
+    """The resumed run's per-epoch metrics up to ``last_step``, so that the new run holds the whole curve."""
+    client, parent = ctx.tracker.client, ctx.cfg.resume_from
+    for key in EPOCH_METRICS:
+        for metric in client.get_metric_history(parent, key):
+            if metric.step <= last_step:
+                ctx.tracker.log_metrics({key: metric.value}, step=metric.step)
+
+
+def train_subtasks(ctx: RunContext) -> dict[str, float]:
+    """Train one agent per subtask of the env's correction plan, in sequence, ``protocol.epochs`` epochs each
+    (module docstring); per-epoch metrics with step = epoch; the final agents as artifacts."""
+    from hrc_lab.rl.agent import EpisodeMetrics, evaluate, learn_episodes
+    from hrc_lab.rl.goal_env import make_goal_env
+    from hrc_lab.rl.guidance import GuidedDDPG
+
+    protocol, rl = ctx.cfg.protocol, ctx.cfg.rl
+    guide = train_guide(ctx) if guided(ctx) else None
+    probe = make_goal_env(ctx.cfg.env, rl, seed=ctx.seed, subtask=0)
+    n_subtasks = len(probe.cell.expert_plan())
+    probe.close()
+    for subtask in range(n_subtasks):
+        env = make_goal_env(ctx.cfg.env, rl, seed=ctx.seed, subtask=subtask)
+        test = make_goal_env(ctx.cfg.env, rl, seed=10_000 + ctx.seed, subtask=subtask)
+        agent = resume_agent(ctx, env, guide, subtask) or build_agent(ctx, env, guide)
+        done = agent.num_timesteps // env.horizon // protocol.episodes_per_epoch  # epochs a resumed agent had
+        if done:
+            copy_history(ctx, subtask * protocol.epochs + done)
+        timer = PhaseTimer(agent)
+        training: dict[str, float] = {}  # the epoch's training episodes (guided ones included), as they ended
+        callback = EpisodeMetrics(lambda values, step, into=training: into.update(values),
+                                  every=protocol.episodes_per_epoch)
+        for epoch in range(done + 1, protocol.epochs + 1):
+            steps, updates = agent.num_timesteps, agent._n_updates
+            corrected = agent.guidance_counts["corrected"] if isinstance(agent, GuidedDDPG) else 0
+            collect_s, train_s = timer.collect_s, timer.train_s
+            learn_episodes(agent, epoch * protocol.episodes_per_epoch, callback)
+            scores = evaluate(agent, test, protocol.eval_episodes, seed=1000 * epoch)
+            corrected = agent.guidance_counts["corrected"] - corrected if isinstance(agent, GuidedDDPG) else 0
+            metrics = {
+                **scores,
+                "train_success_rate": training.get("train_success_rate", float("nan")),
+                "train_collision_rate": training.get("train_collision_rate", float("nan")),
+                "guidance_rate": corrected / max(1, agent.num_timesteps - steps),
+                "env_steps_per_s": (agent.num_timesteps - steps) / max(1e-9, timer.collect_s - collect_s),
+                "updates_per_s": (agent._n_updates - updates) / max(1e-9, timer.train_s - train_s),
+                "subtask": float(subtask),
+            }
+            ctx.tracker.log_metrics(metrics, step=subtask * protocol.epochs + epoch)
+            if epoch % protocol.checkpoint_every == 0 and epoch < protocol.epochs:
+                save_checkpoint(ctx, agent, subtask)
+        save_checkpoint(ctx, agent, subtask)
+        env.close()
+        test.close()
+    # the run's curves as MLflow holds them (a resumed run's include the epochs it copied)
+    history = {key: {m.step: m.value for m in ctx.tracker.client.get_metric_history(ctx.tracker.run_id, key)}
+               for key in EPOCH_METRICS}
+    curves = pd.DataFrame(history).rename_axis("epoch").reset_index().sort_values("epoch")
+    ctx.tracker.log_table(curves, "epochs")
+    last = curves.groupby("subtask").tail(1)
+    collected = n_subtasks * protocol.epochs * protocol.episodes_per_epoch * rl.steps_per_subtask
+    return {
+        # the overall success rate: mean over the plan's subtasks of the last epoch's evaluation
+        "final_success_rate": float(last.success_rate.mean()),
+        "final_collision_rate": float(last.collision_rate.mean()),
+        "final_train_success_rate": float(last.train_success_rate.mean()),
+        "best_success_rate": float(curves.groupby("subtask").success_rate.max().mean()),
+        "mean_guidance_rate": float(curves.guidance_rate.mean()),
+        "mean_env_steps_per_s": float(curves.env_steps_per_s.mean()),
+        "mean_updates_per_s": float(curves.updates_per_s.mean()),
+        "n_subtasks": float(n_subtasks),
+        "n_env_steps": float(collected),
+    }
+
+
+def fig_3_13(ctx: RunContext) -> dict[str, float]:
+    """Error correction: hybrid (lambda 0.7) vs full guidance (1) vs pure exploration (0); per-epoch curves."""
+    return train_subtasks(ctx)
+
+
+def fig_3_12(ctx: RunContext) -> dict[str, float]:
+    """Place and stack: DRL guided by the direction-only NDP (lambda > 0) vs unguided DRL (lambda 0)."""
+    return train_subtasks(ctx)
+
+
+def fig_3_9(ctx: RunContext) -> dict[str, float]:
+    """|end effector - goal| over exploration episodes of random actions (SB3's warm-up: ``rl.learning_starts``
+    is raised above the episodes' steps, so no network acts), corrected by Algorithm 1 in every episode
+    (lambda 1) or never (lambda 0), on the same seeded scenes. Per control step, the mean distance over episodes
+    is logged as ``distance_guided`` / ``distance_unguided`` with step = control step."""
+    import dataclasses
+
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from hrc_lab.rl.agent import build_guided_ddpg_her, learn_episodes
+    from hrc_lab.rl.goal_env import make_goal_env
+
+    protocol = ctx.cfg.protocol
+    guide = train_guide(ctx)
+    rows = []
+
+    class Distances(BaseCallback):
+        def __init__(self, arm: str) -> None:
+            super().__init__()
+            self.arm, self.episode = arm, 0
+
+        def _on_step(self) -> bool:
+            env = self.model.get_env().envs[0].unwrapped
+            step = env.elapsed_steps
+            distance = float(np.linalg.norm(env.cell.eef_position() - env._desired[:3]))
+            rows.append({"arm": self.arm, "episode": self.episode, "step": step, "distance": distance})
+            if self.locals["dones"][0]:
+                self.episode += 1
+            return True
+
+    for arm, lam in (("guided", 1.0), ("unguided", 0.0)):
+        rl = dataclasses.replace(ctx.cfg.rl, lam=lam,
+                                 learning_starts=protocol.episodes * ctx.cfg.rl.steps_per_subtask * 10 + 1)
+        env = make_goal_env(ctx.cfg.env, rl, seed=ctx.seed, subtask=0)
+        env.reset(seed=ctx.seed)  # the same scenes for both arms
+        agent = build_guided_ddpg_her(rl, env, guide, seed=ctx.seed)
+        learn_episodes(agent, protocol.episodes, Distances(arm))
+        env.close()
+    frame = pd.DataFrame(rows)
+    ctx.tracker.log_table(frame, "distances")
+    curve = frame.groupby(["arm", "step"]).distance.mean()
+    for arm in ("guided", "unguided"):
+        for step, value in curve[arm].items():
+            ctx.tracker.log_metrics({f"distance_{arm}": float(value)}, step=int(step))
+    metrics = {}
+    for arm, part in frame.groupby("arm"):
+        metrics[f"mean_distance_{arm}"] = float(part.distance.mean())
+        metrics[f"p95_distance_{arm}"] = float(part.distance.quantile(0.95))
+        metrics[f"within_{protocol.within_m:g}_{arm}"] = float((part.distance <= protocol.within_m).mean())
+    return metrics

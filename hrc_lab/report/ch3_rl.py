@@ -1,0 +1,156 @@
+"""Report sections of the Ch.3 guided-RL experiments (Algorithm 1): Fig. 3.13 (hybrid vs full guidance vs pure
+exploration on error correction), Fig. 3.12 (place and stack, direction-only NDP guidance vs none) and Fig. 3.9
+(distance to the goal in guided vs unguided exploration). Curves come from the runs' per-epoch metric histories
+(MLflow metrics logged with step = epoch; an epoch is defined in :mod:`hrc_lab.experiments.ch3_rl`)."""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import pandas as pd  # noqa: E402
+from mlflow.tracking import MlflowClient  # noqa: E402
+
+from hrc_lab.report.runs import PARAM_PREFIX, amount, spread  # noqa: E402
+from hrc_lab.report.sections import Section, register_section  # noqa: E402
+from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
+from hrc_lab.tracking import resolve_tracking_uri  # noqa: E402
+
+ARMS = {"0": "pure exploration (λ = 0)", "0.7": "hybrid (λ = 0.7)", "1": "full guidance (λ = 1)"}
+
+
+def histories(runs: pd.DataFrame, metric: str) -> pd.DataFrame:
+    """Every run's history of ``metric``: columns run_id, step, value (empty when none was logged)."""
+    if runs.empty or f"{PARAM_PREFIX}logger.tracking_uri" not in runs:
+        return pd.DataFrame(columns=["run_id", "step", "value"])
+    rows = []
+    for run_id, uri in zip(runs.run_id, runs[f"{PARAM_PREFIX}logger.tracking_uri"]):
+        client = MlflowClient(resolve_tracking_uri(uri))
+        history = client.get_metric_history(run_id, metric)
+        rows += [{"run_id": run_id, "step": m.step, "value": m.value} for m in history]
+    return pd.DataFrame(rows, columns=["run_id", "step", "value"])
+
+
+def lam_of(runs: pd.DataFrame) -> pd.Series:
+    """The guidance ratio of each run as text ("0", "0.7", "1"), from its logged ``rl.lam``."""
+    return runs[f"{PARAM_PREFIX}rl.lam"].astype(float).map(lambda v: f"{v:g}")
+
+
+def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str, png: str) -> Section:
+    """SR per epoch for every (scenario, lambda): each run light, the mean over seeds bold; the final-epoch table."""
+    runs = runs.assign(lam=lam_of(runs))
+    history = histories(runs, "success_rate").merge(runs[["run_id", "scenario", "lam", "seed"]], on="run_id")
+    scenarios = sorted(runs.scenario.unique())
+    fig, axes = plt.subplots(1, len(scenarios), figsize=(5 * len(scenarios), 3.4), squeeze=False)
+    rows, csv = [], []
+    for ax, scenario in zip(axes[0], scenarios):
+        for k, lam in enumerate(sorted(runs[runs.scenario == scenario].lam.unique(), key=float)):
+            colour = f"C{k}"
+            part = history[(history.scenario == scenario) & (history.lam == lam)]
+            for _, one in part.groupby("run_id"):
+                ax.plot(one.step, one.value, color=colour, alpha=0.25, linewidth=0.8)
+            mean = part.groupby("step").value.mean()
+            ax.plot(mean.index, mean.values, color=colour, linewidth=2, label=ARMS.get(lam, f"λ = {lam}"))
+            csv += [{"scenario": scenario, "lam": lam, "epoch": int(s), "sr_mean": v} for s, v in mean.items()]
+            done = runs[(runs.scenario == scenario) & (runs.lam == lam)]
+            row = {"experiment": scenario.replace("_", " "), "λ": lam, "seeds": len(done)}
+            for metric, label in (("final_success_rate", "final SR"), ("best_success_rate", "best SR"),
+                                  ("final_train_success_rate", "final training-episode SR"),
+                                  ("final_collision_rate", "collisions"), ("mean_guidance_rate", "guidance rate"),
+                                  ("mean_env_steps_per_s", "env steps/s"), ("mean_updates_per_s", "updates/s")):
+                digits = 0 if metric.startswith("mean_env") or metric.startswith("mean_up") else 2
+                row[label] = fmt(*spread(done, metric), digits=digits)
+            rows.append(row)
+        ax.set_title(scenario.replace("_", " "), fontsize=9)
+        ax.set_xlabel("epoch (subtasks in sequence)")
+        ax.set_ylabel("success rate (evaluation)")
+        ax.set_ylim(-0.02, 1.02)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    text = [intro, "", thesis_line, "", pd.DataFrame(rows).to_markdown(index=False) if rows else "(no runs)"]
+    return Section(title, "\n".join(text), pd.DataFrame(csv), {png: fig})
+
+
+def net_arch(runs: pd.DataFrame) -> str:
+    """The logged hidden layers (params ``rl.net_arch.<i>``) as "64 x 64", or "not logged"."""
+    prefix = f"{PARAM_PREFIX}rl.net_arch."
+    columns = sorted((c for c in runs if c.startswith(prefix)), key=lambda c: int(c.removeprefix(prefix)))
+    if not columns:
+        return "(`rl.net_arch` not logged)"
+    archs = {" x ".join(str(v) for v in row if v == v) for row in runs[columns].itertuples(index=False)}
+    return " or ".join(sorted(archs)) + " units"
+
+
+def epoch_text(runs: pd.DataFrame) -> str:
+    return (f"An epoch: {amount(runs, 'protocol.episodes_per_epoch', 'training episodes')} of "
+            f"{amount(runs, 'rl.steps_per_subtask', 'control steps')}, then "
+            f"{amount(runs, 'protocol.eval_episodes', 'evaluation episodes')} of the deterministic policy on held-out "
+            f"scenes; {amount(runs, 'protocol.epochs', 'epochs')} per subtask, subtasks in sequence (thesis: 550 "
+            f"epochs). Agent: DDPG + HER, hidden layers {net_arch(runs)}; planner trained on "
+            f"{amount(runs, 'protocol.demos', 'expert demonstrations')}. Final SR: the last epoch's evaluation, "
+            f"mean over the plan's subtasks; mean ± std over seeds {sorted(runs.seed.unique())}.")
+
+
+@register_section("fig_3_13")
+def fig_3_13(runs: pd.DataFrame) -> Section:
+    ref = thesis_results()["ch3"]["text"]
+    sr = ref["hybrid_guidance_final_sr"]
+    thesis = (f"Thesis (Fig. 3.13): with the hybrid λ = {ref['hybrid_guidance_lambda']} the overall success rates "
+              f"reach {sr[0]} and {sr[1]} within {ref['hybrid_guidance_epochs']} epochs without any collision; full "
+              "guidance (λ = 1) overfits to one behaviour, pure exploration (λ = 0) is sample-inefficient, so hybrid "
+              "beats both.")
+    intro = ("Algorithm 1: DDPG + HER whose actions the two-level planner corrects (δg = "
+             f"{amount(runs, 'rl.delta_g', 'm')}) in a fraction λ of the episodes, on the error-correction "
+             f"experiments, δr = {amount(runs, 'rl.delta_r', 'm')}. " + epoch_text(runs))
+    return curves_section(runs, "Fig. 3.13: hybrid guidance vs full guidance vs pure exploration", intro, thesis,
+                          "fig_3_13.png")
+
+
+@register_section("fig_3_12")
+def fig_3_12(runs: pd.DataFrame) -> Section:
+    intro = ("Place and stack: DDPG + HER guided by the direction-only neural dynamic planner (λ > 0; "
+             f"`motion.ndp.mode` {amount(runs, 'motion.ndp.mode', '')}) vs unguided (λ = 0). " + epoch_text(runs))
+    thesis = ("Thesis (Fig. 3.12): the DRL agent guided by the direction-only NDP learns both tasks faster than "
+              "unguided DRL (curves only; no final numbers are stated).")
+    return curves_section(runs, "Fig. 3.12: place and stack, direction-only NDP guidance vs unguided DRL", intro,
+                          thesis, "fig_3_12.png")
+
+
+@register_section("fig_3_9")
+def fig_3_9(runs: pd.DataFrame) -> Section:
+    within = thesis_results()["ch3"]["text"]["guided_exploration_within_m"]
+    fig, axes = plt.subplots(1, max(1, runs.scenario.nunique()), figsize=(5 * max(1, runs.scenario.nunique()), 3.2),
+                             squeeze=False)
+    rows, csv = [], []
+    for ax, (scenario, part) in zip(axes[0], runs.groupby("scenario")):
+        for k, arm in enumerate(("guided", "unguided")):
+            history = histories(part, f"distance_{arm}")
+            for _, one in history.groupby("run_id"):
+                ax.plot(one.step, one.value, color=f"C{k}", alpha=0.25, linewidth=0.8)
+            mean = history.groupby("step").value.mean()
+            ax.plot(mean.index, mean.values, color=f"C{k}", linewidth=2, label=arm)
+            csv += [{"scenario": scenario, "arm": arm, "step": int(s), "distance_m": v} for s, v in mean.items()]
+            rows.append({"task": scenario, "exploration": arm, "seeds": len(part),
+                         "mean |eef − goal| (m)": fmt(*spread(part, f"mean_distance_{arm}"), digits=3),
+                         "95th percentile (m)": fmt(*spread(part, f"p95_distance_{arm}"), digits=3),
+                         f"share of steps ≤ {within} m": fmt(*spread(part, f"within_{within:g}_{arm}"))})
+        ax.axhline(within, color="black", linestyle="--", linewidth=1, label=f"thesis: within {within} m")
+        ax.set_title(scenario, fontsize=9)
+        ax.set_xlabel("control step")
+        ax.set_ylabel("|end effector − goal| (m)")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    text = [
+        f"Exploration with random actions ({amount(runs, 'protocol.episodes', 'episodes')} per arm and seed, the "
+        "same scenes), corrected by Algorithm 1 with the direction-only NDP in every step where the action would "
+        "leave the sub-goal by more than δg (guided), or never (unguided); curves: mean over episodes per run "
+        "(light) and over seeds (bold).",
+        "",
+        f"Thesis (Fig. 3.9): the guided exploration keeps the goal-state positional difference within {within} m.",
+        "",
+        pd.DataFrame(rows).to_markdown(index=False) if rows else "(no runs)",
+    ]
+    return Section("Fig. 3.9: distance to the goal in guided vs unguided exploration", "\n".join(text),
+                   pd.DataFrame(csv), {"fig_3_9.png": fig})
+
