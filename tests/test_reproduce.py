@@ -1,0 +1,130 @@
+"""hrc-lab-reproduce: the plan covers every table and figure experiment, --dry-run prints it, a run stops at the
+first failing step, and --check flags a cell only when it moves by more than its seed spread."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from hrc_lab import reproduce
+from hrc_lab.report.sections import TOPICS
+from hrc_lab.reproduce import LEFT_OUT, PLAN, Step, compare_reports, main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_plan_covers_every_table_and_figure_experiment():
+    experiments = {
+        str(p.relative_to(ROOT / "conf/experiment").with_suffix("")) for p in ROOT.glob("conf/experiment/*/*.yaml")
+    }
+    planned = {arg.removeprefix("experiment=") for step in PLAN for arg in step.argv if arg.startswith("experiment=")}
+    assert planned.isdisjoint(LEFT_OUT)
+    assert experiments == planned | set(LEFT_OUT), "every experiment file is planned or left out with a reason"
+    assert {step.topic for step in PLAN if step.kind == "report"} == set(TOPICS)
+    kinds = [step.kind for step in PLAN]
+    assert kinds == sorted(kinds, key=["sweep", "report"].index), "every sweep runs before any report"
+
+
+def test_dry_run_prints_every_step(capsys):
+    assert main(["all", "--dry-run", "--tracking-uri", "http://127.0.0.1:5001"]) == 0
+    out = capsys.readouterr().out
+    for step in PLAN:
+        assert step.name in out
+    assert out.count("logger.tracking_uri=http://127.0.0.1:5001") == sum(step.kind == "sweep" for step in PLAN)
+    assert out.count("--tracking-uri http://127.0.0.1:5001") == len(TOPICS)
+    assert main(["ch6", "--dry-run"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split(": ", 1)[0] for line in lines] == [
+        "[1/3] sweep ch6/table_6_1",
+        "[2/3] sweep ch6/table_6_2_single",
+        "[3/3] report ch6_grasp",
+    ]
+
+
+def test_run_stops_at_the_first_failure(monkeypatch, capsys):
+    fake = [
+        Step("sweep ok", "sweep", "ch6_grasp", ("python", "-c", "print('first ran')")),
+        Step("sweep broken", "sweep", "ch6_grasp", ("python", "-c", "raise SystemExit(3)")),
+        Step("report never", "report", "ch6_grasp", ("python", "-c", "print('must not run')")),
+    ]
+    monkeypatch.setattr(reproduce, "PLAN", fake)
+    assert main(["ch6"]) == 3
+    captured = capsys.readouterr()
+    assert "step 'sweep broken' failed (exit 3)" in captured.err
+    summary = captured.out[captured.out.index("\nstep ") :]
+    assert "sweep ok" in summary and "FAILED (exit 3)" in summary and "not run" in summary and "total" in summary
+    assert "must not run" not in captured.out
+
+
+def _write(folder: Path, topic: str, table: pd.DataFrame) -> None:
+    (folder / topic).mkdir(parents=True, exist_ok=True)
+    table.to_csv(folder / topic / "table_x.csv", index=False)
+
+
+def _table(ours_mean: float, rf_mean: float, latency: float = 1.0) -> pd.DataFrame:
+    return pd.DataFrame(
+        {
+            "method": ["ours", "rf"],
+            "cell": ["3of5", "3of5"],
+            "sr_mean": [ours_mean, rf_mean],
+            "sr_std": [0.05, 0.02],
+            "seeds": [5, 5],
+            "latency_ms": [latency, latency],
+        }
+    )
+
+
+def test_check_flags_a_cell_outside_its_spread_and_passes_one_inside(tmp_path):
+    committed, fresh = tmp_path / "committed", tmp_path / "fresh"
+    _write(committed, "ch4_reasoning", _table(0.80, 0.50))
+    _write(fresh, "ch4_reasoning", _table(0.84, 0.60, latency=9.0))  # ours: +0.04 <= 0.05; rf: +0.10 > 0.02
+    differences, _ = compare_reports(committed, fresh, ["ch4_reasoning"])
+    assert len(differences) == 1, differences
+    assert "('rf', '3of5', 0)" in differences[0] and "sr_mean" in differences[0]
+
+    _write(fresh, "ch4_reasoning", _table(0.84, 0.51))
+    assert compare_reports(committed, fresh, ["ch4_reasoning"])[0] == []
+
+
+def test_check_parses_mean_plus_minus_std_and_exact_cells(tmp_path):
+    committed, fresh = tmp_path / "committed", tmp_path / "fresh"
+    for folder, sr, agree in (
+        (committed, ["0.90 ± 0.05", "0.50 ± 0.01"], 0.95),
+        (fresh, ["0.93 ± 0.02", "0.40 ± 0.01"], 0.94),
+    ):
+        _write(
+            folder, "data_demonstrations", pd.DataFrame({"scenario": ["a", "b"], "sr": sr, "agreement": [agree, 1.0]})
+        )
+    differences, _ = compare_reports(committed, fresh, ["data_demonstrations", "ch3_rl"])
+    assert len(differences) == 2, differences  # b's sr moved 0.10 > 0.01; a's agreement has no spread and changed
+    assert any("('b', 0), sr" in d for d in differences) and any("('a', 0), agreement" in d for d in differences)
+
+
+def test_check_run_exits_non_zero_when_a_fresh_report_differs(monkeypatch, tmp_path, capsys):
+    committed = tmp_path / "committed"
+    _write(committed, "ch6_grasp", _table(0.80, 0.50))
+    write = (
+        "import sys, pathlib, pandas as pd; out = pathlib.Path(sys.argv[sys.argv.index('--out') + 1]) / 'ch6_grasp'; "
+        "out.mkdir(parents=True); pd.DataFrame({'method': ['ours', 'rf'], 'cell': ['3of5'] * 2, "
+        "'sr_mean': [0.8, RF], 'sr_std': [0.05, 0.02], 'seeds': [5, 5], 'latency_ms': [2.0, 2.0]})"
+        ".to_csv(out / 'table_x.csv', index=False)"
+    )
+    for rf_mean, expected in ((0.51, 0), (0.7, 1)):
+        fake = [Step("report ch6_grasp", "report", "ch6_grasp", ("python", "-c", write.replace("RF", str(rf_mean))))]
+        monkeypatch.setattr(reproduce, "PLAN", fake)
+        assert (
+            main(["ch6", "--check", "--committed", str(committed), "--out", str(tmp_path / f"fresh{expected}")])
+            == expected
+        )
+        out = capsys.readouterr().out
+        assert ("DIFFERS" in out) == bool(expected)
+
+
+@pytest.mark.parametrize("selection", ["ch3", "ch4", "ch5", "ch6", "data"])
+def test_every_chapter_has_steps(selection):
+    steps = reproduce.select(PLAN, [selection])
+    assert steps and steps[-1].kind == "report"
+    assert all(Path(sys.executable).parent.joinpath(step.argv[0]).name.startswith("hrc-lab") for step in steps)
