@@ -16,7 +16,8 @@ import time
 from mlflow.entities import ViewType
 from mlflow.tracking import MlflowClient
 
-from hrc_lab.tracking import process_start, resolve_tracking_uri
+from hrc_lab.processes import process_start
+from hrc_lab.tracking import resolve_tracking_uri
 
 
 def running_runs(client: MlflowClient) -> list:

@@ -26,6 +26,8 @@ import urllib.error
 import urllib.request
 from pathlib import Path
 
+from hrc_lab.processes import process_start
+
 PG_BIN_DIRS = [Path("/usr/lib/postgresql/15/bin")]
 LOOPBACK = {"127.0.0.1", "localhost", "::1"}
 DATABASE = "mlflow"
@@ -36,19 +38,6 @@ class ServerError(RuntimeError):
 
 
 # processes ----------------------------------------------------------------------------------------------------------
-def process_start(pid: int) -> str | None:
-    """``<boot id>:<start ticks>`` of a live process, or None: tells our process from a later one with its PID."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-        boot = Path("/proc/sys/kernel/random/boot_id").read_text().strip()
-    except OSError:
-        return None
-    fields = stat.rsplit(")", 1)[1].split()
-    if fields[0] == "Z":  # a zombie is gone
-        return None
-    return f"{boot}:{fields[19]}"
-
-
 def alive(pid: int | None, start: str | None) -> bool:
     return pid is not None and start is not None and process_start(pid) == start
 

@@ -20,6 +20,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from hrc_lab.config import LoggerConfig
 from hrc_lab.interrupts import RunInterrupted
+from hrc_lab.processes import process_start
 
 
 def resolve_tracking_uri(uri: str) -> str:
@@ -71,16 +72,6 @@ def process_identity(pid: int | None = None) -> dict[str, str]:
     clock ticks), so a later look can tell a live job from a dead one whose PID was reused."""
     pid = os.getpid() if pid is None else pid
     return {"host": socket.gethostname(), "pid": str(pid), "process_start": process_start(pid) or "unknown"}
-
-
-def process_start(pid: int) -> str | None:
-    """``<boot id>:<start ticks>`` of a live process on this machine, or None when no such process exists."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-        boot = Path("/proc/sys/kernel/random/boot_id").read_text().strip()
-    except OSError:
-        return None
-    return f"{boot}:{stat.rsplit(')', 1)[1].split()[19]}"
 
 
 class RunTracker:
