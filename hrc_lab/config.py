@@ -12,10 +12,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import DictConfig, OmegaConf
-from omegaconf.errors import OmegaConfBaseException
+from omegaconf import DictConfig
 
-from hrc_lab.registry import ConfigError, Registry
+from hrc_lab.registry import ConfigError, Registry, typed
 
 TOP_LEVEL_KEYS = {
     "name",
@@ -144,17 +143,6 @@ class ValidatedConfig:
     resume_from: str | None = None
 
 
-def _validate_trainer(node: DictConfig) -> TrainerConfig:
-    """The user's merged trainer values as a :class:`TrainerConfig` (so its checks run on them, not on defaults)."""
-    try:
-        values = OmegaConf.to_container(node, resolve=True)
-        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(TrainerConfig), values))
-    except OmegaConfBaseException as err:
-        raise ConfigError(f"trainer.{getattr(err, 'full_key', '?')}: {str(err).splitlines()[0]}") from None
-    except ValueError as err:
-        raise ConfigError(str(err)) from None
-
-
 def validate_config(cfg: DictConfig) -> ValidatedConfig:
     """Check every group of a composed config; raise :class:`ConfigError` naming the first bad key."""
     from hrc_lab.experiments import PROTOCOLS
@@ -168,7 +156,7 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
     for key, minimum in (("seed", 0), ("num_threads", 1)):
         if not isinstance(cfg.get(key), int) or cfg.get(key) < minimum:
             raise ConfigError(f"{key}: must be an integer >= {minimum}, got {cfg.get(key)!r}")
-    trainer = _validate_trainer(cfg.trainer)
+    trainer = typed(TrainerConfig, cfg.trainer, "trainer")
     _check_combination(cfg)
     resume_from = cfg.get("resume_from")
     if resume_from is not None and not (isinstance(resume_from, str) and re.fullmatch(r"[0-9a-f]{32}", resume_from)):
@@ -184,19 +172,11 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
         protocol=PROTOCOLS.validate(cfg.protocol, "protocol"),
         logger=LOGGERS.validate(cfg.logger),
         trainer=trainer,
-        paths=_validate_paths(cfg.paths),
+        paths=typed(PathsConfig, cfg.paths, "paths"),
         resume_from=resume_from,
     )
     _check_across_groups(validated)
     return validated
-
-
-def _validate_paths(node: DictConfig) -> PathsConfig:
-    try:
-        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(PathsConfig),
-                                                   OmegaConf.to_container(node, resolve=True)))
-    except OmegaConfBaseException as err:
-        raise ConfigError(f"paths.{getattr(err, 'full_key', '?')}: {str(err).splitlines()[0]}") from None
 
 
 def _check_combination(cfg: DictConfig) -> None:

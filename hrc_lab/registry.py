@@ -70,17 +70,7 @@ class Registry:
         node = OmegaConf.create(node) if isinstance(node, dict) else node
         if node is None or "name" not in node:
             raise ConfigError(f"{path}.name: missing; choose one of {self.names()}")
-        entry = self.get(node.name)
-        try:
-            body = {k: v for k, v in OmegaConf.to_container(node, resolve=True).items() if k != "name"}
-            config = OmegaConf.to_object(OmegaConf.merge(_writable(OmegaConf.structured(entry.schema)), body))
-        except OmegaConfBaseException as err:
-            key = getattr(err, "full_key", None) or "?"
-            key = key if key.startswith(f"{path}.") else f"{path}.{key}"  # a resolved interpolation names it in full
-            raise ConfigError(f"{key}: {str(err).splitlines()[0]}") from None
-        except (ValueError, TypeError) as err:  # raised by the schema's own checks (__post_init__)
-            raise ConfigError(str(err)) from None
-        return named(config, node.name)
+        return named(typed(self.get(node.name).schema, node, path), node.name)
 
     def derive(self, cfg: Any, **changes) -> Any:
         """``dataclasses.replace(cfg, **changes)`` keeping the config's registry name (a variant of the run's env)."""
@@ -95,6 +85,21 @@ class Registry:
             with open_dict(node):
                 node["name"] = name
             ConfigStore.instance().store(group=f"schema/{self.group}", name=name, node=node)
+
+
+def typed(schema: type, node: DictConfig, path: str) -> Any:
+    """``node`` (its interpolations resolved, without ``name``) as an instance of the dataclass ``schema``: the
+    schema's defaults for what the node leaves out and its checks (``__post_init__``) on the merged values. Any
+    problem is a :class:`ConfigError` naming the full key under ``path``."""
+    try:
+        body = {k: v for k, v in OmegaConf.to_container(node, resolve=True).items() if k != "name"}
+        return OmegaConf.to_object(OmegaConf.merge(_writable(OmegaConf.structured(schema)), body))
+    except OmegaConfBaseException as err:
+        key = getattr(err, "full_key", None) or "?"
+        key = key if key.startswith(f"{path}.") else f"{path}.{key}"  # a resolved interpolation names it in full
+        raise ConfigError(f"{key}: {str(err).splitlines()[0]}") from None
+    except (ValueError, TypeError) as err:  # raised by the schema's own checks (__post_init__)
+        raise ConfigError(str(err)) from None
 
 
 def named(config: Any, name: str) -> Any:
