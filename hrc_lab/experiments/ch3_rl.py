@@ -37,24 +37,26 @@ class PhaseTimer:
     ``learn`` calls, on this instance only)."""
 
     def __init__(self, agent: Any) -> None:
-        self.collect_s = self.train_s = 0.0
-        collect, train = agent.collect_rollouts, agent.train
+        self.seconds = {"collect_rollouts": 0.0, "train": 0.0}
+        for phase in self.seconds:
+            setattr(agent, phase, self._timed(phase, getattr(agent, phase)))
 
-        def timed_collect(*args, **kwargs):
+    def _timed(self, phase: str, method):
+        def timed(*args, **kwargs):
             start = time.perf_counter()
             try:
-                return collect(*args, **kwargs)
+                return method(*args, **kwargs)
             finally:
-                self.collect_s += time.perf_counter() - start
+                self.seconds[phase] += time.perf_counter() - start
+        return timed
 
-        def timed_train(*args, **kwargs):
-            start = time.perf_counter()
-            try:
-                return train(*args, **kwargs)
-            finally:
-                self.train_s += time.perf_counter() - start
+    @property
+    def collect_s(self) -> float:
+        return self.seconds["collect_rollouts"]
 
-        agent.collect_rollouts, agent.train = timed_collect, timed_train
+    @property
+    def train_s(self) -> float:
+        return self.seconds["train"]
 
 
 def guided(ctx: RunContext) -> bool:
