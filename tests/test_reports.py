@@ -16,7 +16,7 @@ from hrc_lab.config import LoggerConfig
 from hrc_lab.report.build import build_topic
 from hrc_lab.report.callbacks import SweepSummary
 from hrc_lab.report.cli import main as report_main
-from hrc_lab.report.runs import fetch_runs, list_variants, setting
+from hrc_lab.report.runs import fetch_runs, setting, variants_of
 from hrc_lab.report.sections import SECTIONS, load_sections
 from hrc_lab.tracking import RunTracker
 
@@ -99,8 +99,8 @@ def test_fetch_runs_selects_one_variant_and_only_finished_runs(store):
     assert len(fetch_runs(uri, EXPERIMENT, variant=None)) == 3
     assert fetch_runs(uri, EXPERIMENT, sweep=UNFINISHED_SWEEP, variant=None).empty
     assert fetch_runs(uri, EXPERIMENT, sweep=ABLATION_SWEEP).empty  # that sweep holds no default run
-    assert list_variants(uri, EXPERIMENT) == {"default": "", "vdeadbeef": ABLATION}
-    assert list_variants(uri, EXPERIMENT, sweep=DEFAULT_SWEEP) == {"default": ""}
+    assert variants_of(fetch_runs(uri, EXPERIMENT, variant=None)) == {"default": "", "vdeadbeef": ABLATION}
+    assert variants_of(fetch_runs(uri, EXPERIMENT, sweep=DEFAULT_SWEEP, variant=None)) == {"default": ""}
 
 
 def test_report_keeps_default_rows_and_gives_each_ablation_its_own_section(store, tmp_path):

@@ -57,21 +57,14 @@ def _tagged(name: str, variant: str) -> str:
 
 def build_sections(
     tracking_uri: str, experiment: str, table: str, sweep: str | None = None, variant: str | None = DEFAULT_VARIANT
-) -> list[tuple[str, Section]]:
-    """(variant, section) for each variant of the finished runs read (one unless ``variant`` is None: then every
-    variant present, default first), each built from its own runs only."""
+) -> list[tuple[str, str, Section]]:
+    """(variant, its overrides, section) for each variant of the finished runs read (one unless ``variant`` is
+    None: then every variant present, default first), each built from its own runs only."""
     runs = fetch_runs(tracking_uri, experiment, sweep, variant)
     if runs.empty:
         return []
-    return [(name, section_of(runs[runs["variant"] == name], table)) for name in variants_of(runs)]
-
-
-def build_section(
-    tracking_uri: str, experiment: str, table: str, sweep: str | None = None, variant: str = DEFAULT_VARIANT
-) -> Section | None:
-    """The section of one variant's finished runs (default: the default runs), or None without any."""
-    sections = build_sections(tracking_uri, experiment, table, sweep, variant)
-    return sections[0][1] if sections else None
+    return [(name, overrides, section_of(runs[runs["variant"] == name], table))
+            for name, overrides in variants_of(runs).items()]
 
 
 def write_section(section: Section, folder: Path, tracking_uri: str, stem: str) -> str:
@@ -112,14 +105,12 @@ def build_topic(topic: str, tracking_uri: str, out_dir: Path, sweep: str | None 
         "",
     ]
     for experiment, table in parts:
-        runs = fetch_runs(tracking_uri, experiment, sweep, variant=None)
-        found = variants_of(runs)
+        sections = build_sections(tracking_uri, experiment, table, sweep, variant=None)
         command = COMMANDS.get(table, experiment)
-        if DEFAULT_VARIANT not in found:
+        if DEFAULT_VARIANT not in {variant for variant, _, _ in sections}:
             missing = f"in sweep {sweep}." if sweep else f"yet: `{command}`."
             body.append(f"## {table}\n\nNo finished default runs {missing}\n")
-        for variant, overrides in found.items():  # default first, then each ablation in its own section
-            section = section_of(runs[runs["variant"] == variant], table)
+        for variant, overrides, section in sections:  # default first, then each ablation in its own section
             ablation = variant != DEFAULT_VARIANT
             body.append(f"Reproduce: `{command}{' ' + overrides if ablation and overrides else ''}`\n")
             stem = f"{table}_{variant}" if ablation else table

@@ -40,14 +40,14 @@ class SweepSummary(Callback):
             print(f"hrc-lab: no finished runs in sweep {sweep_dir}", file=sys.stderr)
             return
         parts = []
-        for variant, section in sections:
+        for variant, _, section in sections:
             stem = config.table if variant == "default" else f"{config.table}_{variant}"
             parts.append(write_section(section, sweep_dir / "summary", uri, stem))
         markdown = "\n".join(parts)
         (sweep_dir / "summary.md").write_text(markdown)
         logger = LoggerConfig(tracking_uri=uri, artifact_root=config.logger.artifact_root)
         tags = {"kind": "summary", "table": str(config.table), "sweep": sweep_dir.name, "chapter": str(config.chapter),
-                "variant": ",".join(variant for variant, _ in sections)}
+                "variant": ",".join(variant for variant, _, _ in sections)}
         with RunTracker(logger, config.name, f"{config.name}-summary-{sweep_dir.name}", tags) as tracker:
             tracker.log_artifact(sweep_dir / "summary", "summary")
             tracker.log_artifact(sweep_dir / "summary.md", "summary")

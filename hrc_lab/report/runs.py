@@ -40,7 +40,7 @@ def _finished_runs(tracking_uri: str, experiment: str, sweep: str | None) -> pd.
             **r.data.metrics,
         }
         for r in runs
-        if r.info.status == "FINISHED" and r.data.tags.get("kind") != "summary"
+        if r.data.tags.get("kind") != "summary"
     ]
     if not rows:
         return pd.DataFrame()
@@ -77,11 +77,6 @@ def variants_of(runs: pd.DataFrame) -> dict[str, str]:
     found = dict(zip(pairs["variant"], pairs["variant_overrides"].astype(str)))
     ordered = sorted(found.items(), key=lambda item: (item[0] != DEFAULT_VARIANT, item[1], item[0]))
     return dict(ordered)
-
-
-def list_variants(tracking_uri: str, experiment: str, sweep: str | None = None) -> dict[str, str]:
-    """The variants with finished runs in ``experiment`` (optionally one sweep) -> their overrides."""
-    return variants_of(fetch_runs(tracking_uri, experiment, sweep, variant=None))
 
 
 def sweeps_line(runs: pd.DataFrame) -> str:
