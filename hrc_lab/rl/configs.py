@@ -25,8 +25,7 @@ GOAL_STRATEGIES = ("future", "final", "episode")  # stable-baselines3's GoalSele
 class RLConfig:
     """DDPG + HER and Algorithm 1's guidance (:mod:`hrc_lab.rl.agent`, :mod:`hrc_lab.rl.guidance`)."""
 
-    # --- episodes (3.3, 3.4.3) ---
-    episodes: int = 550  # training episodes (Fig. 3.13: 550 epochs; Table 4.3's DRL: 5000 iterations)
+    # --- episodes (3.3, 3.4.3); how many the agent trains is the protocol's (e.g. protocol.epochs) ---
     steps_per_subtask: int = 40  # control steps per pick-and-place subtask (3.4.3: "the max step is 40")
     delta_r: float | None = None  # delta_r of Eq. 3.6 / 4.7 while training; null: env.sim.success_threshold
     # --- DDPG (HER paper: Adam 1e-3, 3 x 256 ReLU layers, batch 256, gamma 0.98, polyak 0.95, 20 % Gaussian noise) ---
@@ -55,7 +54,7 @@ class RLConfig:
     subgoal_tolerance: float = 0.008
 
     def __post_init__(self) -> None:
-        for key in ("episodes", "steps_per_subtask", "batch_size", "buffer_size", "train_freq", "n_sampled_goal",
+        for key in ("steps_per_subtask", "batch_size", "buffer_size", "train_freq", "n_sampled_goal",
                     "subgoal_steps"):
             if getattr(self, key) < 1:
                 raise ValueError(f"rl.{key} must be >= 1, got {getattr(self, key)}")
