@@ -4,6 +4,7 @@ guided and unguided DDPG + HER updates in the real error-correction cell, checkp
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 import lightning.pytorch as pl
@@ -237,7 +238,9 @@ def test_guided_ddpg_her_with_the_two_level_planner_runs_updates_in_the_cell(env
         build_guided_ddpg_her(RLConfig(**TINY, guidance="ndp_direction"), env, two_level_guide)
 
 
-def test_checkpoint_round_trip_resumes_training(env, tmp_path):
+def test_checkpoint_round_trip_resumes_training(env, tmp_path, monkeypatch):
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))  # SB3's default logger would write here
+    (tmp_path / "tmp").mkdir()
     agent = build_guided_ddpg_her(RLConfig(**TINY, guidance="ndp", lam=0.5), env, FarGuide(), seed=0)
     learn_episodes(agent, 3)
     files = save_agent(agent, tmp_path / "ckpt")
@@ -253,6 +256,7 @@ def test_checkpoint_round_trip_resumes_training(env, tmp_path):
     assert loaded.replay_buffer.size() == 4 * STEPS
     scores = evaluate(loaded, env, episodes=2)
     assert set(scores) == {"success_rate", "collision_rate", "final_distance"} and 0 <= scores["success_rate"] <= 1
+    assert not any((tmp_path / "tmp").iterdir())  # no SB3-<time> folder per learn call
 
 
 # --- configs ---------------------------------------------------------------------------------------------------------

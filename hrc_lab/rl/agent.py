@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 from stable_baselines3 import DDPG, HerReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.noise import NormalActionNoise
 
 from hrc_lab.rl.configs import RLConfig
@@ -56,12 +57,20 @@ def ddpg_her_kwargs(cfg: RLConfig, env: HRCGoalEnv, seed: int) -> dict[str, Any]
     }
 
 
+def with_silent_logger(agent: DDPG) -> DDPG:
+    """Give ``agent`` a logger that writes nothing: metrics go to the run's tracker through
+    :class:`EpisodeMetrics`, and without a logger of its own every ``learn`` call makes an empty
+    ``SB3-<time>`` folder in the temp directory."""
+    agent.set_logger(Logger(folder=None, output_formats=[]))
+    return agent
+
+
 def build_ddpg_her(cfg: RLConfig, env: HRCGoalEnv, seed: int = 0) -> DDPG:
     """``rl=ddpg_her``: unguided DDPG + HER."""
     if cfg.guidance != "none":
         raise ValueError(f"rl.guidance: ddpg_her is the unguided agent, got guidance '{cfg.guidance}'; "
                          "use rl=ddpg_her_guided")
-    return DDPG(**ddpg_her_kwargs(cfg, env, seed))
+    return with_silent_logger(DDPG(**ddpg_her_kwargs(cfg, env, seed)))
 
 
 def build_guided_ddpg_her(cfg: RLConfig, env: HRCGoalEnv, guide: Any, seed: int = 0) -> GuidedDDPG:
@@ -76,8 +85,8 @@ def build_guided_ddpg_her(cfg: RLConfig, env: HRCGoalEnv, guide: Any, seed: int 
     if mode is not None and mode != expected:
         raise ValueError(f"rl.guidance={cfg.guidance} needs a dynamic planner with motion.ndp.mode={expected}, "
                          f"got {mode}")
-    return GuidedDDPG(guide=guide, lam=cfg.lam, delta_g=cfg.delta_g, guidance_seed=seed,
-                      **ddpg_her_kwargs(cfg, env, seed))
+    return with_silent_logger(GuidedDDPG(guide=guide, lam=cfg.lam, delta_g=cfg.delta_g, guidance_seed=seed,
+                                         **ddpg_her_kwargs(cfg, env, seed)))
 
 
 class EpisodeMetrics(BaseCallback):
@@ -184,4 +193,4 @@ def load_agent(directory: str | pathlib.Path, env: HRCGoalEnv, guide: Any = None
         if isinstance(agent.replay_buffer, HerReplayBuffer):
             agent.replay_buffer.set_env(agent.get_env())
             agent.replay_buffer.truncate_last_trajectory()
-    return agent
+    return with_silent_logger(agent)
