@@ -21,6 +21,7 @@ from hrc_lab.registry import ConfigError, named
 from hrc_lab.rl import RLS
 from hrc_lab.rl.agent import (
     EpisodeMetrics,
+    PhaseTimes,
     build_ddpg_her,
     build_guided_ddpg_her,
     evaluate,
@@ -151,7 +152,9 @@ def test_package_goal_is_every_product_with_the_selected_ones_in_their_slots():
 def test_unguided_ddpg_her_updates_and_relabels_with_eq_3_6(env):
     agent = build_ddpg_her(RLConfig(**TINY), env, seed=0)
     before = [p.detach().clone() for p in agent.actor.parameters()]
-    learn_episodes(agent, 4)
+    timer = PhaseTimes()
+    learn_episodes(agent, 4, timer)
+    assert timer.collect_s > 0 and timer.train_s > 0
     assert agent.num_timesteps == 4 * STEPS and agent._n_updates == 2 * STEPS  # trained after episodes 3 and 4
     assert any(not torch.equal(a, b) for a, b in zip(before, agent.actor.parameters()))
     buffer = agent.replay_buffer

@@ -20,9 +20,6 @@ as MLflow metrics with ``step`` = the epoch.
 
 from __future__ import annotations
 
-import time
-from typing import Any
-
 import numpy as np
 import pandas as pd
 
@@ -30,33 +27,6 @@ from hrc_lab.env import ENVS
 from hrc_lab.experiments.context import RunContext
 
 AGENTS_DIR = "agents"
-
-
-class PhaseTimer:
-    """Wall time an SB3 off-policy agent spends collecting rollouts and training (wraps the two bound methods
-    ``learn`` calls, on this instance only)."""
-
-    def __init__(self, agent: Any) -> None:
-        self.seconds = {"collect_rollouts": 0.0, "train": 0.0}
-        for phase in self.seconds:
-            setattr(agent, phase, self._timed(phase, getattr(agent, phase)))
-
-    def _timed(self, phase: str, method):
-        def timed(*args, **kwargs):
-            start = time.perf_counter()
-            try:
-                return method(*args, **kwargs)
-            finally:
-                self.seconds[phase] += time.perf_counter() - start
-        return timed
-
-    @property
-    def collect_s(self) -> float:
-        return self.seconds["collect_rollouts"]
-
-    @property
-    def train_s(self) -> float:
-        return self.seconds["train"]
 
 
 def guided(ctx: RunContext) -> bool:
@@ -130,7 +100,9 @@ def copy_history(ctx: RunContext, last_step: int) -> None:
 def train_subtasks(ctx: RunContext) -> dict[str, float]:
     """Train one agent per subtask of the env's correction plan, in sequence, ``protocol.epochs`` epochs each
     (module docstring); per-epoch metrics with step = epoch; the final agents as artifacts."""
-    from hrc_lab.rl.agent import EpisodeMetrics, evaluate, learn_episodes
+    from stable_baselines3.common.callbacks import CallbackList
+
+    from hrc_lab.rl.agent import EpisodeMetrics, PhaseTimes, evaluate, learn_episodes
     from hrc_lab.rl.goal_env import make_goal_env
     from hrc_lab.rl.guidance import GuidedDDPG
 
@@ -146,10 +118,10 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
         done = agent.num_timesteps // env.horizon // protocol.episodes_per_epoch  # epochs a resumed agent had
         if done:
             copy_history(ctx, subtask * protocol.epochs + done)
-        timer = PhaseTimer(agent)
+        timer = PhaseTimes()
         training: dict[str, float] = {}  # the epoch's training episodes (guided ones included), as they ended
-        callback = EpisodeMetrics(lambda values, step, into=training: into.update(values),
-                                  every=protocol.episodes_per_epoch)
+        callback = CallbackList([EpisodeMetrics(lambda values, step, into=training: into.update(values),
+                                                every=protocol.episodes_per_epoch), timer])
         for epoch in range(done + 1, protocol.epochs + 1):
             steps, updates = agent.num_timesteps, agent._n_updates
             corrected = agent.guidance_counts["corrected"] if isinstance(agent, GuidedDDPG) else 0

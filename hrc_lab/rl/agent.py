@@ -14,6 +14,7 @@ from __future__ import annotations
 import gzip
 import pathlib
 import pickle
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -113,6 +114,40 @@ class EpisodeMetrics(BaseCallback):
             horizon = self.model.get_env().envs[0].unwrapped.horizon
             self.log(metrics, step=self.model.num_timesteps // horizon)
             self.success, self.collided = [], []
+        return True
+
+
+class PhaseTimes(BaseCallback):
+    """Wall time, summed over ``learn`` calls, in rollout collection (between SB3's rollout-start and rollout-end
+    hooks; guidance included) and in training (from a rollout's end to the next rollout or to the end of
+    ``learn``: the gradient steps). A callback rather than wrapped methods, so nothing is left on the agent for
+    ``save`` to pickle."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.collect_s = self.train_s = 0.0
+        self._since = 0.0
+        self._trained = False  # whether the time since ``_since`` was spent training
+
+    def _on_training_start(self) -> None:
+        self._since, self._trained = time.perf_counter(), False
+
+    def _on_rollout_start(self) -> None:
+        now = time.perf_counter()
+        if self._trained:
+            self.train_s += now - self._since
+        self._since = now
+
+    def _on_rollout_end(self) -> None:
+        now = time.perf_counter()
+        self.collect_s += now - self._since
+        self._since, self._trained = now, True
+
+    def _on_training_end(self) -> None:
+        if self._trained:
+            self.train_s += time.perf_counter() - self._since
+
+    def _on_step(self) -> bool:
         return True
 
 
