@@ -1,3 +1,5 @@
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -43,10 +45,20 @@ def test_chain_graph_drops_missing_products():
 def test_goal_table_rows_follow_p_o():
     placing = observations()[1]  # product 2 (index 1) is held, its goal is slot 3
     table = goal_table(placing, SPEC)
-    slot3 = (placing.slot_positions[2] - [0, 0, SPEC.table_z]) * POSITION_SCALE
+    centre = [*placing.slot_positions[:, :2].mean(axis=0), SPEC.table_z]
+    slot3 = (placing.slot_positions[2] - centre) * POSITION_SCALE
     np.testing.assert_allclose(table[0], slot3)  # row 0: the held product's goal
     np.testing.assert_allclose(table[2], slot3)  # row 1+i: product i's goal
     np.testing.assert_array_equal(table[1], 0)  # product 1 is not selected
+
+
+def test_goal_table_names_the_slot_in_the_box_wherever_the_box_stands():
+    """4.4.3: goal positions vary; a position-specified label is a place in the box, so moving the box must not
+    change the goal features (in table coordinates a 0.1 m move crosses a slot spacing of 0.08 m)."""
+    placing = observations()[1]
+    moved = dataclasses.replace(placing, slot_positions=placing.slot_positions + [0.1, -0.05, 0.0])
+    np.testing.assert_allclose(goal_table(moved, SPEC), goal_table(placing, SPEC), atol=1e-12)
+    assert np.all(np.any(goal_table(placing, SPEC)[[0, 2]] != 0, axis=1))  # no goal encodes as "no goal"
 
 
 def test_object_goal_graph_is_fully_connected_with_goal_nodes():
