@@ -31,10 +31,11 @@ log = logging.getLogger("hrc_lab")
 
 
 def method_of(cfg: DictConfig) -> str:
-    """The method a run compares: the first of its rl, perception, reasoning, motion and grasp modules that is not
-    "none" (a Ch.5 run with a trained action detector is named after the detector, not the planner it feeds; a
-    guided RL run after its agent, not the planner that guides it)."""
-    for group in ("rl", "perception", "reasoning", "motion", "grasp"):
+    """The method a run compares: the first of its tamp system, rl, perception, reasoning, motion and grasp modules
+    that is not "none" (a Table 4.3 run is named after its system, which composes the others; a Ch.5 run with a
+    trained action detector after the detector, not the planner it feeds; a guided RL run after its agent, not
+    the planner that guides it)."""
+    for group in ("tamp", "rl", "perception", "reasoning", "motion", "grasp"):
         node = cfg.get(group) or {}
         name = node.get("name", "none")
         if name != "none":

@@ -29,6 +29,7 @@ TOP_LEVEL_KEYS = {
     "perception",
     "grasp",
     "rl",
+    "tamp",
     "trainer",
     "logger",
     "paths",
@@ -107,9 +108,10 @@ def group_registries() -> dict[str, Registry]:
     from hrc_lab.perception import PERCEPTIONS
     from hrc_lab.reasoning import REASONERS
     from hrc_lab.rl import RLS
+    from hrc_lab.tamp import TAMPS
 
     return {"env": ENVS, "reasoning": REASONERS, "motion": MOTIONS, "perception": PERCEPTIONS, "grasp": GRASPS,
-            "rl": RLS, "logger": LOGGERS}
+            "rl": RLS, "tamp": TAMPS, "logger": LOGGERS}
 
 
 def register_schemas() -> None:
@@ -136,6 +138,7 @@ class ValidatedConfig:
     perception: Any
     grasp: Any
     rl: Any
+    tamp: Any
     protocol: Any
     logger: LoggerConfig
     trainer: TrainerConfig
@@ -162,7 +165,7 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
     if resume_from is not None and not (isinstance(resume_from, str) and re.fullmatch(r"[0-9a-f]{32}", resume_from)):
         raise ConfigError(f"resume_from: must be the 32-character id of an MLflow run, got {resume_from!r}")
     modules = {}
-    for group in ("reasoning", "motion", "perception", "grasp", "rl"):
+    for group in ("reasoning", "motion", "perception", "grasp", "rl", "tamp"):
         node = cfg.get(group)
         modules[group] = None if node is None or node.get("name") == "none" else registries[group].validate(node)
     validated = ValidatedConfig(

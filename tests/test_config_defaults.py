@@ -29,7 +29,8 @@ from hrc_lab.experiments import PROTOCOLS
 from hrc_lab.motion.configs import SubgoalConfig
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
-GROUPS = ("env", "reasoning", "motion", "perception", "grasp", "rl")
+GROUPS = ("env", "reasoning", "motion", "perception", "grasp", "rl", "tamp")
+GLOBAL_PRESETS = ("tamp",)  # groups whose files are presets over other groups (@package _global_, their node below)
 SKIPPED_KEYS = {"name", "defaults"}
 
 
@@ -103,9 +104,12 @@ def uses() -> list[tuple[Path, type, str | None, str]]:
         with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
             for group in GROUPS:
                 for path in sorted((CONF / group).glob("*.yaml")):
-                    name = compose(config_name=f"{group}/{path.stem}")[group].name
+                    preset = group in GLOBAL_PRESETS
+                    name = (compose("config", overrides=[f"{group}={path.stem}"]) if preset
+                            else compose(config_name=f"{group}/{path.stem}"))[group].name
                     if name != "none":
-                        found.append((path, registries[group].get(name).schema, None, f"{group}/{name}"))
+                        found.append((path, registries[group].get(name).schema, group if preset else None,
+                                      f"{group}/{name}"))
             for path in sorted((CONF / "experiment").rglob("*.yaml")):
                 experiment = path.relative_to(CONF / "experiment").with_suffix("").as_posix()
                 name = compose("config", overrides=[f"experiment={experiment}"]).protocol.name

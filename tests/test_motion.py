@@ -16,6 +16,7 @@ from hrc_lab.motion.configs import STAGE_STARTS, NDPConfig, SubgoalConfig
 from hrc_lab.motion.networks import NeuralDynamicPlanner, TaskConditionedVI, variational_loss
 from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier, base_frame, build_subgoal_planner, jitter_r
 from hrc_lab.motion.two_level import (
+    TwoLevelMotion,
     classifier_pairs,
     correction_pairs,
     dynamics_pairs,
@@ -114,7 +115,7 @@ def package_models():
 
 def test_package_rollout_of_a_few_steps(package_models):
     env, planner, ndp = package_models
-    out = run_package(env, planner, ndp, max_steps=2)
+    out = run_package(env, TwoLevelMotion(planner, ndp, max_steps=2))
     assert 0 < out.steps <= 2 * 6 * len(env.expert_plan()) + len(env.expert_plan())
     assert out.planning_ms and all(ms > 0 for ms in out.planning_ms)
     assert out.failure in ("", "pick", "placement", "collision", "horizon")

@@ -47,9 +47,27 @@ def cross_validated_r2(ctx: RunContext, pairs, folds: int) -> float:
     return float(np.mean(scores))
 
 
-def table_4_2(ctx: RunContext) -> dict[str, float]:
+def train_motion_module(ctx: RunContext, env, demos, max_steps: int, tolerance: float):
+    """Ours (4.2.2): the run's sub-goal planner (``motion``) on the demonstrations' sub-goal pairs and the neural
+    dynamic planner on their steps (joint limit and base frame of the cell ``env``), as a
+    :class:`~hrc_lab.motion.two_level.TwoLevelMotion`."""
     from hrc_lab.motion.subgoal import DynamicPlanner
-    from hrc_lab.motion.two_level import DESIGNED_SUBGOALS, dynamics_pairs, package_pairs, run_package
+    from hrc_lab.motion.two_level import DESIGNED_SUBGOALS, TwoLevelMotion, dynamics_pairs, package_pairs
+
+    spec, motion = ctx.cfg.env, ctx.cfg.motion
+    pairs = package_pairs(demos)
+    planner = MOTIONS.build(motion, n_labels=1 + spec.slots, n_subgoals=DESIGNED_SUBGOALS, seed=ctx.seed)
+    planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"), pairs.indices)
+    ndp = DynamicPlanner(motion.ndp, env.max_joint_step, env.base_position(), seed=ctx.seed)
+    ndp.fit(*dynamics_pairs(demos), lambda: ctx.trainer("ndp"))
+    for name, model in (("subgoal", getattr(planner, "network", None)), ("ndp", ndp.network)):
+        if model is not None:
+            ctx.tracker.log_torch_model(model, f"model/{name}.pt")
+    return TwoLevelMotion(planner, ndp, DESIGNED_SUBGOALS, max_steps, tolerance)
+
+
+def table_4_2(ctx: RunContext) -> dict[str, float]:
+    from hrc_lab.motion.two_level import package_pairs, run_package
 
     spec, protocol, motion = ctx.cfg.env, ctx.cfg.protocol, ctx.cfg.motion
     train_env = ENVS.build(spec, seed=ctx.seed)
@@ -57,11 +75,7 @@ def table_4_2(ctx: RunContext) -> dict[str, float]:
     demos = collect_demos(train_env, protocol.demos, f"demos {spec.cell}")
     pairs = package_pairs(demos)
     r2 = cross_validated_r2(ctx, pairs, protocol.cv_folds)
-
-    planner = MOTIONS.build(motion, n_labels=1 + spec.slots, n_subgoals=DESIGNED_SUBGOALS, seed=ctx.seed)
-    planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"), pairs.indices)
-    ndp = DynamicPlanner(motion.ndp, train_env.max_joint_step, train_env.base_position(), seed=ctx.seed)
-    ndp.fit(*dynamics_pairs(demos), lambda: ctx.trainer("ndp"))
+    module = train_motion_module(ctx, train_env, demos, protocol.max_steps_per_subgoal, protocol.tolerance)
 
     # tests: every goal configuration (permutations unseen in training), CASE 1 and CASE 2 alternating
     test_envs = [ENVS.build(ENVS.derive(spec, sim=dataclasses.replace(spec.sim, case=c)), seed=1000 + ctx.seed)
@@ -69,15 +83,12 @@ def table_4_2(ctx: RunContext) -> dict[str, float]:
     rows = []
     for trial in tqdm(range(protocol.trials), desc=f"table 4.2 {spec.cell} {motion.name}", unit="trial"):
         env = test_envs[trial % 2]
-        out = run_package(env, planner, ndp, max_steps=protocol.max_steps_per_subgoal, tolerance=protocol.tolerance)
+        out = run_package(env, module)
         rows.append({"trial": trial, "case": 1 + trial % 2, "success": out.success, "failure": out.failure,
                      "steps": out.steps, "objects": len(out.object_steps),
                      "planning_ms": float(np.mean(out.planning_ms)) if out.planning_ms else np.nan})
     trials = pd.DataFrame(rows)
     ctx.tracker.log_table(trials, "trials")
-    for name, model in (("subgoal", getattr(planner, "network", None)), ("ndp", ndp.network)):
-        if model is not None:
-            ctx.tracker.log_torch_model(model, f"model/{name}.pt")
     done = trials[trials.objects > 0]
     metrics = {
         "r2": r2,

@@ -287,6 +287,61 @@ PROTOCOLS.register("ch4_table_4_2", Table42Protocol, "hrc_lab.experiments.ch4_mo
 
 
 @dataclass
+class Table43Protocol:
+    """Table 4.3 (4.4.3): the system ``tamp`` in the robot cell, ``trials`` trials alternating CASE 1 and CASE 2
+    (Algorithm 2 for ours and RM+RRT-Connect, the deterministic policy for DRL; ``hrc_lab.experiments.ch4_tamp``).
+    Ours and RM+RRT-Connect learn from CASE 1 only: the reasoning module from ``min_demos`` task episodes over every
+    goal configuration (as Table 4.1), ours' motion module from ``demos`` robot demonstrations (as Table 4.2). DRL
+    trains ``drl_iterations`` episodes, CASE 1 or 2 drawn per episode; an iteration is one episode of
+    rl.steps_per_subtask x n control steps followed by as many gradient steps. In the cells ``video_cells`` one
+    CASE 1 and one CASE 2 trial are rendered with the current decision written on the frames."""
+
+    trials: int = 100
+    min_demos: int = 200
+    demos: int = 20
+    max_steps_per_subgoal: int = 30
+    tolerance: float = 0.008  # m: a sub-goal counts as reached within this distance
+    # thesis: 5000. 400 keeps the 12-job sweep (4 cells x 3 systems) within 3 h on 2 cores (conf/experiment/ch4/
+    # table_4_3.yaml); protocol.drl_iterations=5000 runs the thesis' length (~10x the DRL jobs' time)
+    drl_iterations: int = 400
+    video_cells: list[str] = field(default_factory=lambda: ["3of5"])
+    camera: str = "cellview"
+    video_width: int = 320
+    video_height: int = 240
+    frame_skip: int = 2
+
+    def __post_init__(self) -> None:
+        for key in ("trials", "min_demos", "demos", "max_steps_per_subgoal", "drl_iterations", "frame_skip"):
+            if getattr(self, key) < 1:
+                raise ValueError(f"protocol.{key} must be >= 1, got {getattr(self, key)}")
+        if self.tolerance <= 0:
+            raise ValueError(f"protocol.tolerance must be > 0, got {self.tolerance}")
+        if self.video_width < 16 or self.video_height < 16:
+            raise ValueError(f"protocol.video_width/video_height must be >= 16, got {self.video_width}x"
+                             f"{self.video_height}")
+
+    def check(self, validated) -> None:
+        """The groups make the system ``tamp`` names (a preset's choices can be overridden, not contradicted)."""
+        system, reasoning, motion, rl = (validated.tamp.name, validated.reasoning, validated.motion, validated.rl)
+        if system == "drl":
+            if reasoning is not None or motion is not None or rl is None or rl.name != "ddpg_her":
+                raise ValueError("tamp=drl is one flat agent: it needs reasoning=none motion=none rl=ddpg_her")
+            if validated.env.sim.n_missing:
+                raise ValueError("env.sim.n_missing: the DRL baseline needs every product present (use 0)")
+            return
+        if reasoning is None or rl is not None:
+            raise ValueError(f"tamp={system} needs a reasoning module (e.g. reasoning=ours) and rl=none")
+        if system == "ours" and motion.name not in MOTION_PLANNERS:
+            raise ValueError(f"tamp=ours needs a learned motion module (motion={' or motion='.join(MOTION_PLANNERS)}),"
+                             f" got motion={motion.name}")
+        if system == "rm_rrt_connect" and motion.name != "rrt_connect":
+            raise ValueError(f"tamp=rm_rrt_connect needs motion=rrt_connect, got motion={motion.name}")
+
+
+PROTOCOLS.register("ch4_table_4_3", Table43Protocol, "hrc_lab.experiments.ch4_tamp:table_4_3")
+
+
+@dataclass
 class Table31Protocol:
     """Two-level planner on the error-correction cases: ``demos`` expert demonstrations (thesis: 20 per case),
     ``subgoals_per_stage`` re-sampled sub-goals per stage, ``trials`` closed-loop trials scored per object at
@@ -486,6 +541,9 @@ ACCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
     "ch4_practical": {"env": ("package_to_order",), "reasoning": CH4_REASONERS},
     "ch4_fig_4_9": {"env": ("package_to_order",), "reasoning": ("ours",)},  # explains the chain GraphSAGE encoder
     "ch4_table_4_2": {"env": ("package_to_order",), "motion": MOTION_PLANNERS},
+    "ch4_table_4_3": {"env": ("package_to_order",), "reasoning": (*CH4_REASONERS, "none"),
+                      "motion": (*MOTION_PLANNERS, "rrt_connect", "none"), "rl": ("none", "ddpg_her"),
+                      "tamp": ("ours", "rm_rrt_connect", "drl")},
     "ch3_table_3_1": {"env": ("error_correction",), "motion": MOTION_PLANNERS},
     "ch3_fig_3_10": {"env": ("error_correction",), "motion": MOTION_PLANNERS},
     "ch3_fig_3_13": {"env": ("error_correction",), "motion": MOTION_PLANNERS, "rl": GUIDED_RL},
@@ -503,7 +561,7 @@ ACCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
     "ch6_table_6_1": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
     "ch6_table_6_2_single": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
 }
-GROUPS = ("env", "reasoning", "motion", "perception", "grasp", "rl")
+GROUPS = ("env", "reasoning", "motion", "perception", "grasp", "rl", "tamp")
 
 
 def check_combination(protocol: str, names: dict[str, str]) -> None:

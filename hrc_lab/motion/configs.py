@@ -1,4 +1,5 @@
-"""Config schemas of the motion module's sub-goal planners (light: no torch import), and their registry."""
+"""Config schemas of the motion module's sub-goal planners and the RRT-Connect baseline (light: no torch or OMPL
+import), and their registry."""
 
 from __future__ import annotations
 
@@ -68,8 +69,39 @@ class SubgoalConfig:
             raise ValueError(f"motion.kl_weight must be >= 0, got {self.kl_weight}")
 
 
+@dataclass
+class RRTConnectConfig:
+    """RM+RRT-Connect baseline of Table 4.3 (4.4.3, [138], [139]): OMPL's RRT-Connect in the joint space [base,
+    shoulder, elbow] between inverse-kinematics solutions of the expert's waypoints."""
+
+    timeout_s: float = 5.0  # OMPL solve time per plan; no exact solution by then is a failed trial ("timeout")
+    range_rad: float = 0.0  # RRT-Connect's extension length; 0: OMPL's default (0.2 of the space's extent)
+    simplify: bool = True  # OMPL's shortcutting and smoothing of the found path
+    # Motion checking step as a fraction of the space's extent (18.8 rad for the joint limits): 0.0005 is ~0.5 deg
+    # per check, at most ~8 mm of lip motion. OMPL's default 0.01 steps ~10 deg.
+    collision_resolution: float = 0.0005
+    # Distance the arm, cup and held product keep from obstacles on planned paths (the servo lags and the weld of a
+    # held product gives); the straight descents and lifts at the parts are checked for contact only
+    clearance_m: float = 0.01
+    ik_iterations: int = 200  # damped least-squares iterations per inverse-kinematics query
+    ik_tolerance_m: float = 0.001  # lip position error of a converged inverse-kinematics solution
+    ik_damping: float = 0.05  # lambda of the damped least squares (the scripted expert's)
+    hover_m: float = 0.08  # lip above a product's top face before the descent (the expert's HOVER)
+
+    def __post_init__(self) -> None:
+        for key in ("timeout_s", "ik_iterations", "ik_tolerance_m", "ik_damping", "hover_m"):
+            if getattr(self, key) <= 0:
+                raise ValueError(f"motion.{key} must be > 0, got {getattr(self, key)}")
+        for key in ("range_rad", "clearance_m"):
+            if getattr(self, key) < 0:
+                raise ValueError(f"motion.{key} must be >= 0, got {getattr(self, key)}")
+        if not 0 < self.collision_resolution < 1:
+            raise ValueError(f"motion.collision_resolution must be in (0, 1), got {self.collision_resolution}")
+
+
 MOTIONS.register("tc_vi", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
 MOTIONS.register("tc_vi_indexed", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
 MOTIONS.register("vi", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
 MOTIONS.register("mlp", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
 MOTIONS.register("gpr", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
+MOTIONS.register("rrt_connect", RRTConnectConfig, "hrc_lab.motion.rrt_connect:build_rrt_connect")

@@ -152,8 +152,36 @@ def plan(planner, x: np.ndarray, label: int, index: int, timings: list[float]) -
     return mean[0]
 
 
-def run_package(env, planner, ndp, n_subgoals: int = DESIGNED_SUBGOALS, max_steps: int = 30,
-                tolerance: float = 0.008) -> Rollout:
+@dataclass
+class TwoLevelMotion:
+    """The motion module of Ch.4 (4.2.2): per stage, ``n_subgoals`` sub-goals planned from (o_selected or p, r)
+    and the stage's label, each reached by the neural dynamic planner in at most ``max_steps`` steps."""
+
+    planner: object
+    ndp: object
+    n_subgoals: int = DESIGNED_SUBGOALS
+    max_steps: int = 30
+    tolerance: float = 0.008
+
+    def run_stage(self, env, obj: int, stage: int, slot: int, out: Rollout) -> bool:
+        """Pick ``obj`` (stage PICK) or place it into goal slot ``slot`` (PLACE; the caller releases). False, with
+        ``out.failure`` set, when the stage failed."""
+        for i in range(self.n_subgoals):
+            feature = env.object_positions()[obj] if stage == PICK else env.box_position()
+            subgoal = plan(self.planner, np.concatenate([feature, env.lip_target_position()]),
+                           0 if stage == PICK else 1 + slot, i, out.planning_ms)
+            steps, fine = reach(env, self.ndp, subgoal, stage == PLACE or i > 0, self.max_steps, self.tolerance)
+            out.steps += steps
+            if not fine:
+                out.failure = "collision" if env.collisions else "horizon"
+                return False
+        if stage == PICK and env.suction.held != obj:
+            out.failure = "pick"
+            return False
+        return True
+
+
+def run_package(env, motion: TwoLevelMotion) -> Rollout:
     """One package-to-order trial with ground-truth reasoning outputs (the expert's next product and its slot)."""
     env.reset()
     out = Rollout()
@@ -161,17 +189,7 @@ def run_package(env, planner, ndp, n_subgoals: int = DESIGNED_SUBGOALS, max_step
         slot = int(env.episode.goal_slot[obj])
         before = out.steps
         for stage in (PICK, PLACE):
-            for i in range(n_subgoals):
-                feature = env.object_positions()[obj] if stage == PICK else env.box_position()
-                subgoal = plan(planner, np.concatenate([feature, env.lip_target_position()]),
-                               0 if stage == PICK else 1 + slot, i, out.planning_ms)
-                steps, fine = reach(env, ndp, subgoal, stage == PLACE or i > 0, max_steps, tolerance)
-                out.steps += steps
-                if not fine:
-                    out.failure = "collision" if env.collisions else "horizon"
-                    return out
-            if stage == PICK and env.suction.held != obj:
-                out.failure = "pick"
+            if not motion.run_stage(env, obj, stage, slot, out):
                 return out
         env.step(RELEASE)
         out.steps += 1

@@ -24,6 +24,7 @@ COMMANDS = {
     "practical": "hrc-lab experiment=ch4/practical hydra/launcher=joblib",
     "fig_4_9": "hrc-lab experiment=ch4/fig_4_9 hydra/launcher=joblib",
     "table_4_2": "hrc-lab experiment=ch4/table_4_2 hydra/launcher=joblib",
+    "table_4_3": "hrc-lab experiment=ch4/table_4_3 hydra/launcher=joblib",
     "fig_5_7": "hrc-lab experiment=ch5/fig_5_7 hydra/launcher=joblib",
     "table_5_2_planner": "hrc-lab experiment=ch5/table_5_2_planner hydra/launcher=joblib",
     "fig_5_6": "hrc-lab experiment=ch5/fig_5_6 hydra/launcher=joblib",

@@ -70,6 +70,15 @@ TOPICS = {
         "not name the frame).",
         [("ch4/table_4_2", "table_4_2")],
     ),
+    "ch4_tamp": (
+        "Ch.4 TAMP in the robot cell (Algorithm 2): ours vs DRL vs RM+RRT-Connect",
+        "Trials run in our robosuite UR5e cell (`hrc_lab/env/robot/`), not the thesis' CoppeliaSim UR10, so "
+        "execution time is simulated (control steps / control rate), not a UR10's. RRT-Connect is OMPL's "
+        "(`hrc_lab/motion/rrt_connect.py`), planning in the 3-D joint space the neural dynamic planner acts in "
+        "(base, shoulder, elbow; the wrist keeps the tool down) with MuJoCo collision checking; DRL is "
+        "stable-baselines3's DDPG with its HER buffer on our goal env (`hrc_lab/rl/`).",
+        [("ch4/table_4_3", "table_4_3")],
+    ),
     "ch5_planner": (
         "Ch.5 graph semantic planner: goal inference, next object and text plans",
         "Our scenarios come from the assemble-to-order domain (`hrc_lab/env/assembly/spec.py`) with our own three "
@@ -115,6 +124,7 @@ def load_sections() -> None:
         ch3_rl,
         ch4_motion,
         ch4_reasoning,
+        ch4_tamp,
         ch5_perception,
         ch5_planner,
         ch6_grasp,

@@ -60,7 +60,8 @@ class HRCGoalEnv(gym.Env):
     metadata: dict[str, Any] = {"render_modes": []}
 
     def __init__(self, cell: HRCCell, subtask: int | None = 0, steps_per_subtask: int = 40,
-                 delta_r: float | None = None, disable_effector_on_collision: bool = True) -> None:
+                 delta_r: float | None = None, disable_effector_on_collision: bool = True,
+                 cases: tuple[int, ...] = ()) -> None:
         if not isinstance(cell, ErrorCorrection | PackageToOrder):
             raise TypeError(f"HRCGoalEnv wraps ErrorCorrection or PackageToOrder cells, got {type(cell).__name__}")
         if steps_per_subtask < 1:
@@ -68,7 +69,10 @@ class HRCGoalEnv(gym.Env):
         if isinstance(cell, PackageToOrder) and cell.n_missing:
             raise ValueError("env.sim.n_missing: the DRL baseline has every product present (a parked product "
                              "has no reachable goal); use n_missing=0")
+        if cases and (not isinstance(cell, PackageToOrder) or set(cases) - {1, 2}):
+            raise ValueError(f"cases: a package-to-order cell draws CASE 1 or 2 per episode, got {list(cases)}")
         self.cell = cell
+        self.cases = tuple(cases)
         self.subtask = subtask
         self.steps_per_subtask = steps_per_subtask
         self.delta_r = float(cell.success_threshold if delta_r is None else delta_r)
@@ -157,6 +161,8 @@ class HRCGoalEnv(gym.Env):
 
     def _reset_scene(self) -> None:
         cell = self.cell
+        if self.cases:
+            cell.case = self.cases[int(self.np_random.integers(len(self.cases)))]
         cell.reset()
         if self.correction:
             plan = cell.expert_plan()
@@ -197,10 +203,13 @@ class HRCGoalEnv(gym.Env):
         }
 
 
-def make_goal_env(env_cfg: Any, rl_cfg: Any, seed: int | None = None, subtask: int | None = 0) -> HRCGoalEnv:
+def make_goal_env(env_cfg: Any, rl_cfg: Any, seed: int | None = None, subtask: int | None = 0,
+                  cases: tuple[int, ...] = ()) -> HRCGoalEnv:
     """The goal env of an ``env`` config of a robot cell (what ``ENVS.build`` makes of it) and an ``rl`` config
-    (``steps_per_subtask``, ``delta_r``); ``subtask`` as in :class:`HRCGoalEnv` (error correction only)."""
+    (``steps_per_subtask``, ``delta_r``); ``subtask`` as in :class:`HRCGoalEnv` (error correction only); ``cases``:
+    a package-to-order cell draws its CASE from these per episode (the DRL baseline of Table 4.3 trains on both)."""
     from hrc_lab.env import ENVS
 
     cell = ENVS.build(env_cfg, seed=seed)
-    return HRCGoalEnv(cell, subtask=subtask, steps_per_subtask=rl_cfg.steps_per_subtask, delta_r=rl_cfg.delta_r)
+    return HRCGoalEnv(cell, subtask=subtask, steps_per_subtask=rl_cfg.steps_per_subtask, delta_r=rl_cfg.delta_r,
+                      cases=cases)

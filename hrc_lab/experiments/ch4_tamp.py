@@ -1,0 +1,253 @@
+"""Table 4.3 (thesis 4.4.3): the whole TAMP system in the robot cell against a flat DRL agent and against the
+reasoning module with RRT-Connect. One Hydra job = one (cell, system ``tamp``, seed).
+
+- ``tamp=ours``: Algorithm 2 (:func:`hrc_lab.tamp.algorithm2.run_tamp`) with the reasoning module trained as in
+  Table 4.1 and the two-level motion module trained as in Table 4.2, both on CASE 1 only;
+- ``tamp=rm_rrt_connect``: the same reasoning module (same data, same seed) with OMPL's RRT-Connect as the motion
+  module (:mod:`hrc_lab.motion.rrt_connect`);
+- ``tamp=drl``: one DDPG + HER agent (:mod:`hrc_lab.rl`) trained on CASE 1 and CASE 2, then its deterministic
+  policy; a trial succeeds if the order is packed (Eq. 4.7) with no collision when its episode ends.
+
+Every system is tested on the same ``protocol.trials`` scenes (cells seeded ``1000 + seed``; trials alternate CASE 1
+and CASE 2). Per object: planning time (reasoning decisions + motion planning, wall clock, batch 1), control steps
+and simulated execution time (steps / env.sim.control_freq). Failure reasons as in :mod:`hrc_lab.tamp.algorithm2`;
+DRL's are ``collision`` or ``goal`` (the order was not packed when the episode ended).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from hrc_lab.env import ENVS
+from hrc_lab.experiments.context import RunContext
+
+CASES = (1, 2)
+
+
+def case_cell(ctx: RunContext, case: int, **render):
+    """The run's cell in CASE ``case``, seeded like every system's test cells."""
+    spec = ctx.cfg.env
+    return ENVS.build(ENVS.derive(spec, sim=dataclasses.replace(spec.sim, case=case)), seed=1000 + ctx.seed,
+                      **render)
+
+
+def render_args(protocol) -> dict:
+    return dict(has_offscreen_renderer=True, camera_names=protocol.camera, camera_heights=protocol.video_height,
+                camera_widths=protocol.video_width)
+
+
+# --- ours and RM+RRT-Connect --------------------------------------------------------------------------------------
+
+
+def train_reasoner(ctx: RunContext):
+    """The reasoning module on CASE 1 task episodes of every goal configuration (as Table 4.1's full demo set)."""
+    from hrc_lab.env.robot.spec import goal_configurations
+    from hrc_lab.experiments.ch4_reasoning import demo_repeats, episodes_for, train
+
+    spec = ctx.cfg.env
+    episodes = episodes_for(spec, goal_configurations(spec), ctx.rng(0), demo_repeats(spec, ctx.cfg.protocol.min_demos))
+    reasoner, seconds = train(ctx, spec, episodes, prefix="reasoning")
+    if hasattr(reasoner, "network"):
+        ctx.tracker.log_torch_model(reasoner.network, "model/reasoner.pt")
+    ctx.tracker.log_metrics({"reasoning_train_s": seconds})
+    return reasoner
+
+
+def build_motion(ctx: RunContext):
+    """Ours: the two-level motion module trained on CASE 1 robot demonstrations (as Table 4.2); otherwise the
+    ``motion`` group's planner (RRT-Connect), which needs no training."""
+    from hrc_lab.experiments.ch4_motion import collect_demos, fixed_goal_configurations, train_motion_module
+    from hrc_lab.motion import MOTIONS
+
+    protocol, spec = ctx.cfg.protocol, ctx.cfg.env
+    if ctx.cfg.tamp.name != "ours":
+        return MOTIONS.build(ctx.cfg.motion, seed=ctx.seed)
+    train_env = ENVS.build(spec, seed=ctx.seed)
+    train_env.configurations = fixed_goal_configurations(spec)
+    demos = collect_demos(train_env, protocol.demos, f"demos {spec.cell}")
+    module = train_motion_module(ctx, train_env, demos, protocol.max_steps_per_subgoal, protocol.tolerance)
+    train_env.close()
+    return module
+
+
+def tamp_row(out) -> dict:
+    from hrc_lab.tamp.algorithm2 import REASONING_FAILURES
+
+    per_object = list(out.object_planning_ms.values())
+    return {
+        "success": out.success,
+        "failure": out.failure,
+        "failure_kind": "" if not out.failure else ("reasoning" if out.failure in REASONING_FAILURES else "motion"),
+        "steps": out.steps,
+        "objects": len(out.object_steps),
+        "object_steps": float(np.mean(list(out.object_steps.values()))) if out.object_steps else np.nan,
+        "planning_ms_per_object": float(np.mean(per_object)) if per_object else np.nan,
+        "reasoning_ms": float(np.median([d.reasoning_ms for d in out.decisions])) if out.decisions else np.nan,
+        "decisions": " ".join(d.text().replace(" ", "_") for d in out.decisions),
+    }
+
+
+def tamp_trials(ctx: RunContext, reasoner, motion) -> pd.DataFrame:
+    from hrc_lab.tamp.algorithm2 import run_tamp
+
+    cells = {case: case_cell(ctx, case) for case in CASES}
+    rows = []
+    label = f"table 4.3 {ctx.cfg.env.cell} {ctx.cfg.tamp.name}"
+    for trial in tqdm(range(ctx.cfg.protocol.trials), desc=label, unit="trial"):
+        case = CASES[trial % 2]
+        out = run_tamp(cells[case], reasoner, motion)
+        rows.append({"trial": trial, "case": case, **tamp_row(out)})
+    for cell in cells.values():
+        cell.close()
+    return pd.DataFrame(rows)
+
+
+def tamp_videos(ctx: RunContext, reasoner, motion) -> list:
+    from hrc_lab.tamp.algorithm2 import run_tamp
+    from hrc_lab.tamp.video import FrameRecorder, write_video
+
+    protocol, paths = ctx.cfg.protocol, []
+    for case in CASES:
+        cell = case_cell(ctx, case, **render_args(protocol))
+        recorder = FrameRecorder(cell, protocol.camera, protocol.video_width, protocol.video_height,
+                                 protocol.frame_skip)
+        out = run_tamp(recorder, reasoner, motion, on_decision=lambda d, r=recorder: setattr(r, "text", d.text()))
+        recorder.text = "packed" if out.success else f"failed: {out.failure}"
+        recorder.frames.append(recorder.frame())
+        name = f"{ctx.cfg.tamp.name}_{ctx.cfg.env.cell}_case{case}.mp4"
+        paths += write_video(recorder.frames, ctx.output_dir / name, cell.control_freq / protocol.frame_skip)
+        cell.close()
+    return paths
+
+
+# --- DRL ------------------------------------------------------------------------------------------------------------
+
+
+def train_drl(ctx: RunContext):
+    """DDPG + HER for ``protocol.drl_iterations`` episodes, CASE 1 or 2 drawn per episode; the training curve
+    (every 20 episodes) and the throughput go to MLflow, the agent (without its replay buffer) to the artifacts."""
+    from stable_baselines3.common.callbacks import CallbackList
+
+    from hrc_lab.rl import RLS
+    from hrc_lab.rl.agent import EpisodeMetrics, PhaseTimes, learn_episodes, save_agent
+    from hrc_lab.rl.goal_env import make_goal_env
+
+    protocol = ctx.cfg.protocol
+    env = make_goal_env(ctx.cfg.env, ctx.cfg.rl, seed=ctx.seed, cases=CASES)
+    agent = RLS.build(ctx.cfg.rl, env=env, seed=ctx.seed)
+    timer = PhaseTimes()
+    start = time.perf_counter()
+    learn_episodes(agent, protocol.drl_iterations,
+                   CallbackList([EpisodeMetrics(ctx.tracker.log_metrics, every=20), timer]))
+    ctx.tracker.log_metrics({"drl_train_s": time.perf_counter() - start,
+                             "env_steps_per_s": agent.num_timesteps / max(timer.collect_s, 1e-9),
+                             "updates_per_s": agent._n_updates / max(timer.train_s, 1e-9)})
+    save_agent(agent, ctx.output_dir / "agent", replay_buffer=False)
+    ctx.tracker.log_artifact(ctx.output_dir / "agent", "agent")
+    return agent
+
+
+def drl_episode(agent, goal_env) -> dict:
+    """One deterministic episode from the goal env's next scene: success at its end (Eq. 4.7, no collision) and
+    the steps until the order was first packed."""
+    obs, _ = goal_env.reset()
+    first = None
+    truncated, info = False, {}
+    while not truncated:
+        action, _ = agent.predict(obs, deterministic=True)
+        obs, _, _, truncated, info = goal_env.step(action)
+        if info["is_success"] and first is None:
+            first = goal_env.elapsed_steps
+    success = bool(info["is_success"])
+    n = goal_env.cell.spec.n_selected
+    return {"success": success, "failure": "" if success else ("collision" if info["collided"] else "goal"),
+            "failure_kind": "" if success else "motion", "steps": goal_env.elapsed_steps,
+            "objects": n if success else 0, "object_steps": first / n if success and first else np.nan,
+            "planning_ms_per_object": np.nan, "reasoning_ms": np.nan, "decisions": ""}
+
+
+def drl_goal_env(ctx: RunContext, case: int, **render):
+    from hrc_lab.rl.goal_env import HRCGoalEnv
+
+    rl = ctx.cfg.rl
+    goal_env = HRCGoalEnv(case_cell(ctx, case, **render), steps_per_subtask=rl.steps_per_subtask,
+                          delta_r=rl.delta_r)
+    goal_env.cell.reseed(1000 + ctx.seed)  # its first scene is the first trial's, as for the other systems
+    return goal_env
+
+
+def drl_trials(ctx: RunContext, agent) -> pd.DataFrame:
+    envs = {case: drl_goal_env(ctx, case) for case in CASES}
+    rows = []
+    for trial in tqdm(range(ctx.cfg.protocol.trials), desc=f"table 4.3 {ctx.cfg.env.cell} drl", unit="trial"):
+        case = CASES[trial % 2]
+        rows.append({"trial": trial, "case": case, **drl_episode(agent, envs[case])})
+    for env in envs.values():
+        env.close()
+    return pd.DataFrame(rows)
+
+
+def drl_videos(ctx: RunContext, agent) -> list:
+    from hrc_lab.tamp.video import FrameRecorder, write_video
+
+    protocol, paths = ctx.cfg.protocol, []
+    for case in CASES:
+        goal_env = drl_goal_env(ctx, case, **render_args(protocol))
+        cell = goal_env.cell
+        goal_env.cell = recorder = FrameRecorder(cell, protocol.camera, protocol.video_width, protocol.video_height,
+                                                 protocol.frame_skip)
+        recorder.text = "DRL: flat policy, no plan"
+        row = drl_episode(agent, goal_env)
+        recorder.text = "packed" if row["success"] else f"failed: {row['failure']}"
+        recorder.frames.append(recorder.frame())
+        name = f"drl_{ctx.cfg.env.cell}_case{case}.mp4"
+        paths += write_video(recorder.frames, ctx.output_dir / name, cell.control_freq / protocol.frame_skip)
+        cell.close()
+    return paths
+
+
+# --- the protocol ---------------------------------------------------------------------------------------------------
+
+
+def summarise(trials: pd.DataFrame, control_freq: float) -> dict[str, float]:
+    """Success rates (all, per case), per-object planning and execution, and the failure breakdown."""
+    done = trials[trials.objects > 0]
+    metrics = {
+        "sr": float(trials.success.mean()),
+        **{f"sr_case{c}": float(trials[trials.case == c].success.mean()) for c in CASES},
+        "planning_ms_per_object": float(done.planning_ms_per_object.median()) if len(done) else np.nan,
+        "reasoning_ms": float(trials.reasoning_ms.median()),
+        "steps_per_object": float(done.object_steps.mean()) if len(done) else np.nan,
+        "n_trials": float(len(trials)),
+    }
+    metrics["execution_s_per_object"] = metrics["steps_per_object"] / control_freq
+    for kind in ("reasoning", "motion"):
+        metrics[f"fail_{kind}"] = float((trials.failure_kind == kind).mean())
+    for failure in sorted(set(trials.failure) - {""}):
+        metrics[f"fail_{failure}"] = float((trials.failure == failure).mean())
+    return metrics
+
+
+def table_4_3(ctx: RunContext) -> dict[str, float]:
+    protocol, spec, system = ctx.cfg.protocol, ctx.cfg.env, ctx.cfg.tamp.name
+    if system == "drl":
+        agent = train_drl(ctx)
+        trials = drl_trials(ctx, agent)
+        videos = drl_videos(ctx, agent) if spec.cell in protocol.video_cells else []
+    else:
+        reasoner = train_reasoner(ctx)
+        motion = build_motion(ctx)
+        trials = tamp_trials(ctx, reasoner, motion)
+        videos = tamp_videos(ctx, reasoner, motion) if spec.cell in protocol.video_cells else []
+    for path in videos:
+        ctx.tracker.log_artifact(path, "videos")
+    ctx.tracker.log_table(trials, "trials")
+    metrics = summarise(trials, spec.sim.control_freq)
+    ctx.tracker.log_table(pd.DataFrame([{"method": system, "seed": ctx.seed, "cell": spec.cell, **metrics}]),
+                          "table_4_3")
+    return metrics

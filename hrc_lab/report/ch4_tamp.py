@@ -1,0 +1,125 @@
+"""Report section of the Ch.4 TAMP system in the robot cell: Table 4.3 (ours vs DRL vs RM+RRT-Connect)."""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from hrc_lab.report.runs import amount, keyed, mean_std  # noqa: E402
+from hrc_lab.report.sections import Section, register_section  # noqa: E402
+from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
+
+CELLS = ["2of3", "3of3", "3of5", "4of5"]
+SYSTEMS = ["ours", "drl", "rm_rrt_connect"]
+LABELS = {"ours": "Ours (Algorithm 2)", "drl": "DRL (DDPG + HER)", "rm_rrt_connect": "RM+RRT-Connect"}
+FAILURES = ("wrong_stage", "wrong_object", "wrong_slot", "pick", "placement", "collision", "horizon", "ik",
+            "timeout", "stages", "goal")
+
+
+def _stat(stats: pd.DataFrame, system: str, cell: str) -> tuple[float, float]:
+    hit = stats[(stats.method == system) & (stats.cell == cell)]
+    return (hit.iloc[0]["mean"], hit.iloc[0]["std"]) if len(hit) else (np.nan, np.nan)
+
+
+def _mean(runs: pd.DataFrame, system: str, metric: str, cell: str | None = None) -> float:
+    part = runs[(runs.method == system) & ((runs.cell == cell) if cell else True)]
+    return float(part[metric].mean()) if metric in part and len(part) else np.nan
+
+
+@register_section("table_4_3")
+def table_4_3(runs: pd.DataFrame) -> Section:
+    thesis = thesis_results()["ch4"]["table_4_3"]
+    cells = [c for c in CELLS if c in set(runs.cell)]
+    systems = [s for s in SYSTEMS if s in set(runs.method)]
+    stats = {key: mean_std(runs, ["method", "cell"], key) for key in ("sr", "sr_case1", "sr_case2")}
+    rows, csv = [], []
+    for system in systems:
+        row = {"system": LABELS[system]}
+        for cell in cells:
+            i = CELLS.index(cell)
+            mean, std = _stat(stats["sr"], system, cell)
+            row[f"{cell} SR"] = f"{fmt(mean, std)} ({fmt(*thesis[system]['sr'][i])})"
+            c1, c2 = _stat(stats["sr_case1"], system, cell)[0], _stat(stats["sr_case2"], system, cell)[0]
+            row[f"{cell} CASE 1 / 2"] = f"{fmt(c1)} / {fmt(c2)}"
+            csv.append({"system": system, "cell": cell, "sr_mean": mean, "sr_std": std, "sr_case1": c1,
+                        "sr_case2": c2, "thesis_sr": thesis[system]["sr"][i][0],
+                        "planning_ms_per_object": _mean(runs, system, "planning_ms_per_object", cell),
+                        "steps_per_object": _mean(runs, system, "steps_per_object", cell),
+                        "execution_s_per_object": _mean(runs, system, "execution_s_per_object", cell)})
+        rows.append(row)
+    frame = pd.DataFrame(csv)
+
+    timing = []
+    for system in systems:
+        ref = thesis[system]
+        ref_plan = (f"{ref['planning_ms'][0]} ± {ref['planning_ms'][1]} ms" if "planning_ms" in ref else
+                    f"{ref['planning_s'][0]} ± {ref['planning_s'][1]} s" if "planning_s" in ref else "–")
+        ref_exec = f"{ref['execution_s'][0]} ± {ref['execution_s'][1]} s" if "execution_s" in ref else "–"
+        timing.append({
+            "system": LABELS[system],
+            "planning per object, ms (median)": fmt(_mean(runs, system, "planning_ms_per_object")),
+            "thesis planning": ref_plan,
+            "steps per object": fmt(_mean(runs, system, "steps_per_object")),
+            "execution per object, s (simulated)": fmt(_mean(runs, system, "execution_s_per_object")),
+            "thesis execution": ref_exec,
+        })
+    ratio_line = ""
+    if {"ours", "rm_rrt_connect"} <= set(systems):
+        ratios = [frame[(frame.system == "rm_rrt_connect") & (frame.cell == c)].planning_ms_per_object.iloc[0]
+                  / frame[(frame.system == "ours") & (frame.cell == c)].planning_ms_per_object.iloc[0]
+                  for c in cells]
+        ratio_line = (f"**Planning time RRT-Connect / ours: {np.nanmean(ratios):.0f}×** (per cell "
+                      f"{', '.join(f'{c} {r:.0f}×' for c, r in zip(cells, ratios))}; the same trials, both "
+                      f"including the reasoning module's two decisions per object; thesis 9.6 s / 7.8 ms ≈ 1230×).")
+    failures = runs.groupby("method")[[f"fail_{f}" for f in FAILURES if f"fail_{f}" in runs]].mean()
+    failures = failures.reindex(systems).rename(index=LABELS).round(2)
+    text = [
+        f"Success rate (SR) of {amount(runs, 'protocol.trials', 'trials')} per cell (CASE 1 and CASE 2 alternating, "
+        f"the same scenes for every system), δr = {keyed(runs, 'env.sim.success_threshold', 'm')}; mean ± std over "
+        f"seeds {sorted(runs.seed.unique())}, thesis values in brackets. Ours and RM+RRT-Connect learn from CASE 1 "
+        f"only (reasoning module: {amount(runs, 'protocol.min_demos', 'task episodes')} as Table 4.1; motion module: "
+        f"{amount(runs, 'protocol.demos', 'robot demonstrations')} as Table 4.2); DRL trains "
+        f"{amount(runs, 'protocol.drl_iterations', 'episodes')} (thesis: 5000 iterations) on both cases.",
+        "",
+        pd.DataFrame(rows).to_markdown(index=False),
+        "",
+        pd.DataFrame(timing).to_markdown(index=False),
+        "",
+        ratio_line,
+        "",
+        "Why trials failed (share of trials). Reasoning: `wrong_stage`, `wrong_object` (not selected, packed or "
+        "absent), `wrong_slot`; motion: `pick`, `placement` (> δr from the slot), `collision` (Eq. 4.7), `horizon`, "
+        "RRT-Connect's `ik` and `timeout`; `stages` out of decisions; DRL's `goal` (not packed at the episode's end).",
+        "",
+        failures.reset_index().to_markdown(index=False),
+    ]
+    artifacts = {}
+    for system in systems:
+        part = runs[(runs.method == system) & (runs.cell == "3of5")].sort_values("seed")
+        for case in (1, 2):
+            if len(part):
+                name = f"{system}_3of5_case{case}"
+                artifacts[f"{name}_strip.jpg"] = (part.iloc[0].run_id, f"videos/{name}_strip.jpg")
+                artifacts[f"{name}.mp4"] = (part.iloc[0].run_id, f"videos/{name}.mp4")
+    return Section("Table 4.3: the TAMP system vs DRL vs RM+RRT-Connect", "\n".join(text), frame,
+                   {"table_4_3.png": _plot(frame, systems, cells)}, artifacts)
+
+
+def _plot(frame: pd.DataFrame, systems: list[str], cells: list[str]):
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    width = 0.8 / max(len(systems), 1)
+    for k, system in enumerate(systems):
+        part = frame[frame.system == system].set_index("cell").reindex(cells)
+        x = np.arange(len(cells)) + (k - (len(systems) - 1) / 2) * width
+        ax.bar(x, part.sr_mean, width, yerr=part.sr_std, capsize=2, label=LABELS[system])
+        ax.scatter(x, part.thesis_sr, marker="_", s=200, color="black", linewidths=2, zorder=3)
+    ax.set_xticks(np.arange(len(cells)), cells)
+    ax.set_ylabel("success rate (bars: ours, dashes: thesis)")
+    ax.set_ylim(0, 1.05)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig

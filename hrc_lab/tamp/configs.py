@@ -1,0 +1,26 @@
+"""The ``tamp`` config schema (light: no torch import) and its registry: which system of Table 4.3 a run is.
+
+A ``conf/tamp/<name>.yaml`` is a preset: its defaults list sets the reasoning, motion and rl groups the system is
+made of, and command-line group choices still win (``tamp=ours reasoning=gnn`` runs Algorithm 2 with the GNN
+baseline as the reasoning module). The protocol checks that the groups make the named system
+(:class:`hrc_lab.experiments.schemas.Table43Protocol`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hrc_lab.registry import Registry
+
+TAMPS = Registry("tamp")
+
+
+@dataclass
+class TampConfig:
+    """A system of Table 4.3; nothing to set beyond its ``name`` (its modules are the other groups)."""
+
+
+# Ours: reasoning module + two-level motion module (Algorithm 2); RM+RRT-Connect: the same reasoning module, the
+# motion module replaced by OMPL's RRT-Connect ([138], [139]); DRL: one flat DDPG + HER agent, no reasoning module.
+for _name in ("ours", "rm_rrt_connect", "drl"):
+    TAMPS.register(_name, TampConfig)

@@ -1,0 +1,59 @@
+"""Videos of the learned systems (Table 4.3's report): a cell wrapper that renders every few control steps and
+writes the current decision on the frame, as the text overlay of the thesis' Fig. 4.12."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # off-screen rendering on the CPU (or osmesa)
+
+
+class FrameRecorder:
+    """Stands in for a cell: ``step`` steps it, then every ``frame_skip``-th call renders ``camera`` with ``text``
+    on the frame. Everything else is the cell's."""
+
+    def __init__(self, cell, camera: str, width: int, height: int, frame_skip: int = 2) -> None:
+        self.__dict__.update(cell=cell, camera=camera, width=width, height=height, frame_skip=frame_skip,
+                             text="", frames=[], steps=0)
+
+    def __getattr__(self, name: str):
+        return getattr(self.cell, name)
+
+    def step(self, action):
+        result = self.cell.step(action)
+        self.__dict__["steps"] += 1
+        if self.steps % self.frame_skip == 0:
+            self.frames.append(self.frame())
+        return result
+
+    def frame(self) -> np.ndarray:
+        """The camera's RGB image now (rows top-down) with ``text`` in its top-left corner."""
+        import cv2
+
+        image = np.flipud(self.cell.sim.render(camera_name=self.camera, width=self.width, height=self.height)).copy()
+        if self.text:
+            cv2.putText(image, self.text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 3, cv2.LINE_AA)
+            cv2.putText(image, self.text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1, cv2.LINE_AA)
+        return image
+
+
+def write_video(frames: list[np.ndarray], path: Path, fps: float) -> list[Path]:
+    """``frames`` (RGB) as an MP4 at ``path`` and a strip of four of them beside it (``<stem>_strip.jpg``, for
+    pages that cannot play video). Returns both paths."""
+    import cv2
+
+    if not frames:
+        raise ValueError(f"{path.name}: no frame was rendered (the trial ended before the first frame)")
+    h, w = frames[0].shape[:2]
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
+    for frame in frames:
+        writer.write(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
+    writer.release()
+    strip = path.with_name(f"{path.stem}_strip.jpg")
+    picks = np.linspace(0, len(frames) - 1, 4).astype(int)
+    cv2.imwrite(str(strip), cv2.cvtColor(np.hstack([frames[i] for i in picks]), cv2.COLOR_RGB2BGR),
+                [cv2.IMWRITE_JPEG_QUALITY, 80])
+    return [path, strip]
