@@ -13,6 +13,7 @@ import pytest
 import torch
 from hydra import compose, initialize_config_dir
 from hydra.core.global_hydra import GlobalHydra
+from stable_baselines3.common.callbacks import CallbackList
 
 from hrc_lab.env.robot.settings import ErrorCorrectionConfig, PackageToOrderConfig, SimSettings
 from hrc_lab.motion.configs import NDPConfig, SubgoalConfig
@@ -21,6 +22,7 @@ from hrc_lab.registry import ConfigError, named
 from hrc_lab.rl import RLS
 from hrc_lab.rl.agent import (
     EpisodeMetrics,
+    EpisodeProgress,
     PhaseTimes,
     build_ddpg_her,
     build_guided_ddpg_her,
@@ -152,9 +154,9 @@ def test_package_goal_is_every_product_with_the_selected_ones_in_their_slots():
 def test_unguided_ddpg_her_updates_and_relabels_with_eq_3_6(env):
     agent = build_ddpg_her(RLConfig(**TINY), env, seed=0)
     before = [p.detach().clone() for p in agent.actor.parameters()]
-    timer = PhaseTimes()
-    learn_episodes(agent, 4, timer)
-    assert timer.collect_s > 0 and timer.train_s > 0
+    timer, progress = PhaseTimes(), EpisodeProgress(4, "test")
+    learn_episodes(agent, 4, CallbackList([timer, progress]))
+    assert timer.collect_s > 0 and timer.train_s > 0 and progress.bar.n == 4
     assert agent.num_timesteps == 4 * STEPS and agent._n_updates == 2 * STEPS  # trained after episodes 3 and 4
     assert any(not torch.equal(a, b) for a, b in zip(before, agent.actor.parameters()))
     buffer = agent.replay_buffer

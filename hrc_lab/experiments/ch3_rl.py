@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+from tqdm import tqdm
 
 from hrc_lab.env import ENVS
 from hrc_lab.experiments.context import RunContext
@@ -122,7 +123,8 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
         training: dict[str, float] = {}  # the epoch's training episodes (guided ones included), as they ended
         callback = CallbackList([EpisodeMetrics(lambda values, step, into=training: into.update(values),
                                                 every=protocol.episodes_per_epoch), timer])
-        for epoch in range(done + 1, protocol.epochs + 1):
+        epochs = tqdm(range(done + 1, protocol.epochs + 1), desc=f"{ctx.cfg.env.cell} subtask {subtask}", unit="epoch")
+        for epoch in epochs:
             steps, updates = agent.num_timesteps, agent._n_updates
             corrected = agent.guidance_counts["corrected"] if isinstance(agent, GuidedDDPG) else 0
             collect_s, train_s = timer.collect_s, timer.train_s

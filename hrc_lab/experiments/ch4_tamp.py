@@ -134,7 +134,7 @@ def train_drl(ctx: RunContext):
     from stable_baselines3.common.callbacks import CallbackList
 
     from hrc_lab.rl import RLS
-    from hrc_lab.rl.agent import EpisodeMetrics, PhaseTimes, learn_episodes, save_agent
+    from hrc_lab.rl.agent import EpisodeMetrics, EpisodeProgress, PhaseTimes, learn_episodes, save_agent
     from hrc_lab.rl.goal_env import make_goal_env
 
     protocol = ctx.cfg.protocol
@@ -143,7 +143,8 @@ def train_drl(ctx: RunContext):
     timer = PhaseTimes()
     start = time.perf_counter()
     learn_episodes(agent, protocol.drl_iterations,
-                   CallbackList([EpisodeMetrics(ctx.tracker.log_metrics, every=20), timer]))
+                   CallbackList([EpisodeMetrics(ctx.tracker.log_metrics, every=20), timer,
+                                 EpisodeProgress(protocol.drl_iterations, f"drl {ctx.cfg.env.cell}")]))
     ctx.tracker.log_metrics({"drl_train_s": time.perf_counter() - start,
                              "env_steps_per_s": agent.num_timesteps / max(timer.collect_s, 1e-9),
                              "updates_per_s": agent._n_updates / max(timer.train_s, 1e-9)})

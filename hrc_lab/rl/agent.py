@@ -23,6 +23,7 @@ from stable_baselines3 import DDPG, HerReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.noise import NormalActionNoise
+from tqdm import tqdm
 
 from hrc_lab.rl.configs import RLConfig
 from hrc_lab.rl.goal_env import HRCGoalEnv
@@ -115,6 +116,26 @@ class EpisodeMetrics(BaseCallback):
             self.log(metrics, step=self.model.num_timesteps // horizon)
             self.success, self.collided = [], []
         return True
+
+
+class EpisodeProgress(BaseCallback):
+    """A progress bar over the training episodes of one ``learn`` call (``total``: the episode count it ends at)."""
+
+    def __init__(self, total: int, desc: str) -> None:
+        super().__init__()
+        self.total, self.desc = total, desc
+        self.bar: tqdm | None = None
+
+    def _on_training_start(self) -> None:
+        horizon = self.model.get_env().envs[0].unwrapped.horizon
+        self.bar = tqdm(total=self.total, initial=self.num_timesteps // horizon, desc=self.desc, unit="episode")
+
+    def _on_step(self) -> bool:
+        self.bar.update(int(sum(self.locals["dones"])))
+        return True
+
+    def _on_training_end(self) -> None:
+        self.bar.close()
 
 
 class PhaseTimes(BaseCallback):
