@@ -89,6 +89,7 @@ def tamp_row(out) -> dict:
         "planning_ms_per_object": float(np.mean(per_object)) if per_object else np.nan,
         "reasoning_ms": float(np.median([d.reasoning_ms for d in out.decisions])) if out.decisions else np.nan,
         "decisions": " ".join(d.text().replace(" ", "_") for d in out.decisions),
+        "collision": out.collisions[0] if out.collisions else "",
     }
 
 
@@ -169,7 +170,8 @@ def drl_episode(agent, goal_env) -> dict:
     return {"success": success, "failure": "" if success else ("collision" if info["collided"] else "goal"),
             "failure_kind": "" if success else "motion", "steps": goal_env.elapsed_steps,
             "objects": n if success else 0, "object_steps": first / n if success and first else np.nan,
-            "planning_ms_per_object": np.nan, "reasoning_ms": np.nan, "decisions": ""}
+            "planning_ms_per_object": np.nan, "reasoning_ms": np.nan, "decisions": "",
+            "collision": info["collisions"][0] if info["collisions"] else ""}
 
 
 def drl_goal_env(ctx: RunContext, case: int, **render):
@@ -229,6 +231,8 @@ def summarise(trials: pd.DataFrame, control_freq: float) -> dict[str, float]:
     metrics["execution_s_per_object"] = metrics["steps_per_object"] / control_freq
     for kind in ("reasoning", "motion"):
         metrics[f"fail_{kind}"] = float((trials.failure_kind == kind).mean())
+        for c in CASES:
+            metrics[f"fail_{kind}_case{c}"] = float((trials[trials.case == c].failure_kind == kind).mean())
     for failure in sorted(set(trials.failure) - {""}):
         metrics[f"fail_{failure}"] = float((trials.failure == failure).mean())
     return metrics

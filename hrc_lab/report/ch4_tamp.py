@@ -77,6 +77,8 @@ def table_4_3(runs: pd.DataFrame) -> Section:
                       f"including the reasoning module's two decisions per object; thesis 9.6 s / 7.8 ms ≈ 1230×).")
     failures = runs.groupby("method")[[f"fail_{f}" for f in FAILURES if f"fail_{f}" in runs]].mean()
     failures = failures.reindex(systems).rename(index=LABELS).round(2)
+    by_case = [f"fail_{kind}_case{c}" for kind in ("reasoning", "motion") for c in (1, 2)]
+    by_case = runs.groupby(["method", "cell"])[[k for k in by_case if k in runs]].mean().round(2)
     text = [
         f"Success rate (SR) of {amount(runs, 'protocol.trials', 'trials')} per cell (CASE 1 and CASE 2 alternating, "
         f"the same scenes for every system), δr = {keyed(runs, 'env.sim.success_threshold', 'm')}; mean ± std over "
@@ -97,6 +99,9 @@ def table_4_3(runs: pd.DataFrame) -> Section:
         "",
         failures.reset_index().to_markdown(index=False),
     ]
+    if by_case.shape[1]:
+        text += ["", "Reasoning and motion failures per case (share of that case's trials):", "",
+                 by_case.rename(index=LABELS, level=0).reset_index().to_markdown(index=False)]
     artifacts = {}
     for system in systems:
         part = runs[(runs.method == system) & (runs.cell == "3of5")].sort_values("seed")

@@ -66,6 +66,7 @@ class Decision:
 class TampRollout(Rollout):
     decisions: list[Decision] = field(default_factory=list)
     object_planning_ms: dict[int, float] = field(default_factory=dict)  # product -> reasoning + motion planning
+    collisions: list[str] = field(default_factory=list)  # the cell's forbidden contacts, e.g. "cup: ... / box_wall_n"
 
 
 def decide(reasoner, env) -> Decision:
@@ -114,6 +115,7 @@ def run_tamp(env, reasoner, motion, max_stages: int | None = None, on_decision=N
             started[obj] = (out.steps, len(out.planning_ms))
         steps0, plans0 = started.get(obj, (out.steps, len(out.planning_ms)))
         if not motion.run_stage(env, obj, decision.stage, decision.slot, out):
+            out.collisions = list(env.collisions)
             return out
         if decision.stage == PLACE:
             env.step(RELEASE)
@@ -125,6 +127,7 @@ def run_tamp(env, reasoner, motion, max_stages: int | None = None, on_decision=N
                 out.failure = "placement"
                 return out
     out.success = bool(env._check_success())
+    out.collisions = list(env.collisions)
     if not out.success:
         out.failure = "stages" if not all_packed(env) else ("collision" if env.collisions else "placement")
     return out
