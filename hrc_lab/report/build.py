@@ -81,7 +81,7 @@ def write_section(section: Section, folder: Path, tracking_uri: str, stem: str) 
     files = []
     for name, (run_id, artifact) in section.artifacts.items():
         shutil.copy(client.download_artifacts(run_id, artifact), folder / name)
-        (images if name.endswith(".png") else files).append(name)
+        (images if name.endswith((".png", ".jpg")) else files).append(name)
     links = "\n".join(f"![{name}]({folder.name}/{name})" for name in images)
     links += "".join(f"\n\n[{name}]({folder.name}/{name})" for name in files)
     sources = f"{section.sources}\n\n" if section.sources else ""
