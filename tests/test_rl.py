@@ -24,6 +24,7 @@ from hrc_lab.rl.agent import (
     EpisodeMetrics,
     EpisodeProgress,
     PhaseTimes,
+    add_demonstrations,
     build_ddpg_her,
     build_guided_ddpg_her,
     evaluate,
@@ -172,6 +173,22 @@ def test_unguided_ddpg_her_updates_and_relabels_with_eq_3_6(env):
     assert 0.5 < relabelled.mean() < 1.0
     assert np.all(np.any(np.all(desired[relabelled][:, None] == stored[None], axis=-1), axis=1))
     assert set(np.unique(recomputed)) == {0.0, -1.0}  # random motions leave blue in place: its pose is reached
+
+
+def test_demonstrations_fill_the_buffer_with_whole_relabelled_episodes():
+    """Table 4.3's DRL learns from the scripted expert's episodes too: full-horizon episodes in HER's buffer, whose
+    relabelled rewards are Eq. 4.7's; the package cell's expert packs a 2of3 order within 50 steps per product."""
+    env = make_goal_env(package_cell(n_objects=3, n_selected=2), RLConfig(**{**TINY, "steps_per_subtask": 50}),
+                        seed=0, cases=(1, 2))
+    agent = build_ddpg_her(RLConfig(**{**TINY, "steps_per_subtask": 50}), env, seed=0)
+    assert add_demonstrations(agent, env, 2, seed=1) == 1.0
+    buffer = agent.replay_buffer
+    assert buffer.size() == 2 * env.horizon and buffer.ep_length[: buffer.size(), 0].tolist() == [env.horizon] * 200
+    batch = buffer.sample(64)
+    recomputed = env.compute_reward(batch.next_observations["achieved_goal"].numpy(),
+                                    batch.observations["desired_goal"].numpy(), {})
+    np.testing.assert_array_equal(batch.rewards.numpy().ravel(), recomputed)
+    assert agent.num_timesteps == 0  # demonstrations are not the agent's own steps
 
 
 # --- Algorithm 1 ---------------------------------------------------------------------------------------------------

@@ -130,17 +130,28 @@ def tamp_videos(ctx: RunContext, reasoner, motion) -> list:
 
 
 def train_drl(ctx: RunContext):
-    """DDPG + HER for ``protocol.drl_iterations`` episodes, CASE 1 or 2 drawn per episode; the training curve
-    (every 20 episodes) and the throughput go to MLflow, the agent (without its replay buffer) to the artifacts."""
+    """DDPG + HER: ``protocol.drl_demos`` scripted-expert episodes into the replay buffer, then
+    ``protocol.drl_iterations`` training episodes, CASE 1 or 2 drawn per episode; the training curve (every 20
+    episodes) and the throughput go to MLflow, the agent (without its replay buffer) to the artifacts."""
     from stable_baselines3.common.callbacks import CallbackList
 
     from hrc_lab.rl import RLS
-    from hrc_lab.rl.agent import EpisodeMetrics, EpisodeProgress, PhaseTimes, learn_episodes, save_agent
+    from hrc_lab.rl.agent import (
+        EpisodeMetrics,
+        EpisodeProgress,
+        PhaseTimes,
+        add_demonstrations,
+        learn_episodes,
+        save_agent,
+    )
     from hrc_lab.rl.goal_env import make_goal_env
 
     protocol = ctx.cfg.protocol
     env = make_goal_env(ctx.cfg.env, ctx.cfg.rl, seed=ctx.seed, cases=CASES)
     agent = RLS.build(ctx.cfg.rl, env=env, seed=ctx.seed)
+    if protocol.drl_demos:
+        success = add_demonstrations(agent, env, protocol.drl_demos, seed=5000 + ctx.seed)  # not the test scenes
+        ctx.tracker.log_metrics({"demo_success_rate": success})
     timer = PhaseTimes()
     start = time.perf_counter()
     learn_episodes(agent, protocol.drl_iterations,

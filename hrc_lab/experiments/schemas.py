@@ -292,8 +292,9 @@ class Table43Protocol:
     (Algorithm 2 for ours and RM+RRT-Connect, the deterministic policy for DRL; ``hrc_lab.experiments.ch4_tamp``).
     Ours and RM+RRT-Connect learn from CASE 1 only: the reasoning module from ``min_demos`` task episodes over every
     goal configuration (as Table 4.1), ours' motion module from ``demos`` robot demonstrations (as Table 4.2). DRL
-    trains ``drl_iterations`` episodes, CASE 1 or 2 drawn per episode; an iteration is one episode of
-    rl.steps_per_subtask x n control steps followed by as many gradient steps. In the cells ``video_cells`` one
+    trains ``drl_iterations`` episodes, CASE 1 or 2 drawn per episode, after ``drl_demos`` scripted-expert episodes
+    (either case) went into its replay buffer; an iteration is one episode of rl.steps_per_subtask x n control steps
+    followed by as many gradient steps. In the cells ``video_cells`` one
     CASE 1 and one CASE 2 trial are rendered with the current decision written on the frames."""
 
     trials: int = 100
@@ -304,6 +305,9 @@ class Table43Protocol:
     # thesis: 5000. 400 keeps the 12-job sweep (4 cells x 3 systems) within 3 h on 2 cores (conf/experiment/ch4/
     # table_4_3.yaml); protocol.drl_iterations=5000 runs the thesis' length (~10x the DRL jobs' time)
     drl_iterations: int = 400
+    # scripted-expert episodes in the DRL agent's replay buffer before it trains ("trained using demonstrations from
+    # both cases", Table 4.3; the thesis gives no count: 20 per case, as the TAMP's demonstrations); 0: none
+    drl_demos: int = 40
     video_cells: list[str] = field(default_factory=lambda: ["3of5"])
     camera: str = "cellview"
     video_width: int = 320
@@ -316,6 +320,8 @@ class Table43Protocol:
                 raise ValueError(f"protocol.{key} must be >= 1, got {getattr(self, key)}")
         if self.tolerance <= 0:
             raise ValueError(f"protocol.tolerance must be > 0, got {self.tolerance}")
+        if self.drl_demos < 0:
+            raise ValueError(f"protocol.drl_demos must be >= 0, got {self.drl_demos}")
         if self.video_width < 16 or self.video_height < 16:
             raise ValueError(f"protocol.video_width/video_height must be >= 16, got {self.video_width}x"
                              f"{self.video_height}")

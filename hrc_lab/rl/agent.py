@@ -184,6 +184,33 @@ def learn_episodes(agent: DDPG, episodes: int, callback: BaseCallback | None = N
     return agent
 
 
+def add_demonstrations(agent: DDPG, env: HRCGoalEnv, episodes: int, seed: int = 0) -> float:
+    """Put ``episodes`` episodes of the scripted expert (:class:`~hrc_lab.env.robot.expert.ScriptedExpert`) acting in
+    ``env`` into the agent's replay buffer, as the thesis' DRL baseline is "trained using demonstrations" (Table 4.3);
+    HER relabels them like the agent's own. Each episode runs the env's full horizon (the arm holds still with
+    suction off once the expert is done), so its transitions look like the agent's. The first scene is drawn with
+    ``seed``. Returns the share of demonstrations that ended in success."""
+    from hrc_lab.env.robot.expert import ScriptedExpert
+
+    still = np.zeros(env.action_space.shape[0], dtype=np.float32)
+    still[-1] = -1.0
+    successes = []
+    for k in range(episodes):
+        obs, _ = env.reset(seed=seed if k == 0 else None)
+        expert = ScriptedExpert(env.cell)
+        truncated, info = False, {}
+        while not truncated:
+            step = expert.act()
+            action = still if step is None else np.clip(step.action / env.action_scale, -1.0, 1.0).astype(np.float32)
+            next_obs, reward, _, truncated, info = env.step(action)
+            agent.replay_buffer.add({k: v[None] for k, v in obs.items()}, {k: v[None] for k, v in next_obs.items()},
+                                    action[None], np.array([reward]), np.array([truncated]),
+                                    [{**info, "TimeLimit.truncated": truncated}])
+            obs = next_obs
+        successes.append(bool(info["is_success"]))
+    return float(np.mean(successes)) if successes else float("nan")
+
+
 def evaluate(agent: DDPG, env: HRCGoalEnv, episodes: int, seed: int = 0) -> dict[str, float]:
     """Success rate (Eq. 3.7 / 4.7 at the episode's last step), collision rate and mean final goal distance of
     the deterministic policy over ``episodes`` scenes (episode k seeded ``seed + k``)."""
