@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-import matplotlib
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting  # noqa: E402
-from hrc_lab.report.sections import Section, register_section  # noqa: E402
-from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
+from hrc_lab.report.plots import success_bars
+from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting
+from hrc_lab.report.sections import Section, register_section
+from hrc_lab.report.thesis import fmt, thesis_results
 
 CELLS = ["2of3", "3of3", "3of5", "4of5"]
 METHODS = ["tc_vi", "vi", "gpr", "mlp"]
@@ -73,20 +70,4 @@ def table_4_2(runs: pd.DataFrame) -> Section:
         text += ["", f"Planning latency of our sub-goal planner: **{latency:.2f} ms** per sub-goal on one CPU core "
                      f"(thesis {ref_ms} ms); {steps:.1f} control steps per product (thesis 27-47)."]
     return Section("Table 4.2: sub-goal regressors and the motion module", "\n".join(text), pd.DataFrame(csv),
-                   {"table_4_2.png": _plot(pd.DataFrame(csv), methods, cells)})
-
-
-def _plot(frame: pd.DataFrame, methods: list[str], cells: list[str]):
-    fig, ax = plt.subplots(figsize=(7, 3.6))
-    width = 0.8 / max(len(methods), 1)
-    for k, method in enumerate(methods):
-        part = frame[frame.method == method].set_index("cell").reindex(cells)
-        x = np.arange(len(cells)) + (k - (len(methods) - 1) / 2) * width
-        ax.bar(x, part.sr_mean, width, yerr=part.sr_std, capsize=2, label=LABELS[method])
-        ax.scatter(x, part.thesis_sr, marker="_", s=200, color="black", linewidths=2, zorder=3)
-    ax.set_xticks(np.arange(len(cells)), cells)
-    ax.set_ylabel("success rate (bars: ours, dashes: thesis)")
-    ax.set_ylim(0, 1.05)
-    ax.legend(fontsize=8, ncol=2)
-    fig.tight_layout()
-    return fig
+                   {"table_4_2.png": success_bars(pd.DataFrame(csv), cells, methods, LABELS, "Table 4.2")})

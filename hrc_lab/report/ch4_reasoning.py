@@ -9,6 +9,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from hrc_lab.report.plots import success_bars  # noqa: E402
 from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
@@ -71,25 +72,9 @@ def table_4_1(runs: pd.DataFrame) -> Section:
         "Table 4.1: reasoning success rates",
         "\n".join(text),
         pd.DataFrame(csv),
-        {"table_4_1.png": _bar_plot(pd.DataFrame(csv), cells, methods)},
+        {"table_4_1.png": success_bars(pd.DataFrame(csv), cells, methods, LABELS, "Table 4.1",
+                                       thesis_col="thesis_mean")},
     )
-
-
-def _bar_plot(frame: pd.DataFrame, cells: list[str], methods: list[str]):
-    fig, ax = plt.subplots(figsize=(8, 3.6))
-    width = 0.8 / max(len(methods), 1)
-    for i, method in enumerate(methods):
-        part = frame[frame.method == method].set_index("cell").reindex(cells)
-        x = np.arange(len(cells)) + (i - (len(methods) - 1) / 2) * width
-        ax.bar(x, part.sr_mean, width, yerr=part.sr_std, capsize=2, label=LABELS.get(method, method))
-        ax.scatter(x, part.thesis_mean.astype(float), marker="_", s=120, color="black", zorder=3)
-    ax.set_xticks(range(len(cells)), cells)
-    ax.set_ylim(0, 1.05)
-    ax.set_ylabel("success rate")
-    ax.set_title("Table 4.1 - bars: ours (mean ± std over seeds); black ticks: thesis")
-    ax.legend(ncol=len(methods), fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), frameon=False)
-    fig.tight_layout()
-    return fig
 
 
 def _lambda_columns(runs: pd.DataFrame, case: str) -> dict[float, str]:

@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-import matplotlib
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from hrc_lab.report.runs import amount, keyed, mean_std  # noqa: E402
-from hrc_lab.report.sections import Section, register_section  # noqa: E402
-from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
+from hrc_lab.report.plots import success_bars
+from hrc_lab.report.runs import amount, keyed, mean_std
+from hrc_lab.report.sections import Section, register_section
+from hrc_lab.report.thesis import fmt, thesis_results
 
 CELLS = ["2of3", "3of3", "3of5", "4of5"]
 SYSTEMS = ["ours", "drl", "rm_rrt_connect"]
@@ -113,20 +110,5 @@ def table_4_3(runs: pd.DataFrame) -> Section:
                 artifacts[f"{name}_strip.jpg"] = (part.iloc[0].run_id, f"videos/{name}_strip.jpg")
                 artifacts[f"{name}.mp4"] = (part.iloc[0].run_id, f"videos/{name}.mp4")
     return Section("Table 4.3: the TAMP system vs DRL vs RM+RRT-Connect", "\n".join(text), frame,
-                   {"table_4_3.png": _plot(frame, systems, cells)}, artifacts)
-
-
-def _plot(frame: pd.DataFrame, systems: list[str], cells: list[str]):
-    fig, ax = plt.subplots(figsize=(7, 3.6))
-    width = 0.8 / max(len(systems), 1)
-    for k, system in enumerate(systems):
-        part = frame[frame.system == system].set_index("cell").reindex(cells)
-        x = np.arange(len(cells)) + (k - (len(systems) - 1) / 2) * width
-        ax.bar(x, part.sr_mean, width, yerr=part.sr_std, capsize=2, label=LABELS[system])
-        ax.scatter(x, part.thesis_sr, marker="_", s=200, color="black", linewidths=2, zorder=3)
-    ax.set_xticks(np.arange(len(cells)), cells)
-    ax.set_ylabel("success rate (bars: ours, dashes: thesis)")
-    ax.set_ylim(0, 1.05)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    return fig
+                   {"table_4_3.png": success_bars(frame, cells, systems, LABELS, "Table 4.3", group_col="system")},
+                   artifacts)
