@@ -147,6 +147,7 @@ def test_table_4_3_job_end_to_end(system, overrides, run_job, tmp_path):
     (["tamp=ours", "rl=ddpg_her"], "rl=none"),
     (["tamp=drl", "env.sim.n_missing=1"], "env.sim.n_missing"),
     (["protocol.trials=0"], "protocol.trials"),
+    (["protocol.motion_demos=some"], "protocol.motion_demos"),
 ])
 def test_table_4_3_config_errors_name_the_key(compose_config, overrides, key):
     from hrc_lab.config import validate_config

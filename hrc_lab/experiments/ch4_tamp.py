@@ -59,8 +59,9 @@ def train_reasoner(ctx: RunContext):
 
 
 def build_motion(ctx: RunContext):
-    """Ours: the two-level motion module trained on CASE 1 robot demonstrations (as Table 4.2); otherwise the
-    ``motion`` group's planner (RRT-Connect), which needs no training."""
+    """Ours: the two-level motion module trained on CASE 1 robot demonstrations (as Table 4.2, or over every goal
+    configuration with ``protocol.motion_demos=all``); otherwise the ``motion`` group's planner (RRT-Connect), which
+    needs no training."""
     from hrc_lab.experiments.ch4_motion import collect_demos, fixed_goal_configurations, train_motion_module
     from hrc_lab.motion import MOTIONS
 
@@ -68,7 +69,8 @@ def build_motion(ctx: RunContext):
     if ctx.cfg.tamp.name != "ours":
         return MOTIONS.build(ctx.cfg.motion, seed=ctx.seed)
     train_env = ENVS.build(spec, seed=ctx.seed)
-    train_env.configurations = fixed_goal_configurations(spec)
+    if protocol.motion_demos == "fixed":
+        train_env.configurations = fixed_goal_configurations(spec)
     demos = collect_demos(train_env, protocol.demos, f"demos {spec.cell}")
     module = train_motion_module(ctx, train_env, demos, protocol.max_steps_per_subgoal, protocol.tolerance)
     train_env.close()

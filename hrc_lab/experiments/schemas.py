@@ -308,6 +308,9 @@ class Table43Protocol:
     # scripted-expert episodes in the DRL agent's replay buffer before it trains ("trained using demonstrations from
     # both cases", Table 4.3; the thesis gives no count: 20 per case, as the TAMP's demonstrations); 0: none
     drl_demos: int = 40
+    # the goal configurations of ours' robot demonstrations: "fixed", one packing arrangement per selection (the k-th
+    # lowest product into slot k, as Table 4.2 after 4.4.2.1), or "all" (every permutation)
+    motion_demos: str = "fixed"
     video_cells: list[str] = field(default_factory=lambda: ["3of5"])
     camera: str = "cellview"
     video_width: int = 320
@@ -322,6 +325,8 @@ class Table43Protocol:
             raise ValueError(f"protocol.tolerance must be > 0, got {self.tolerance}")
         if self.drl_demos < 0:
             raise ValueError(f"protocol.drl_demos must be >= 0, got {self.drl_demos}")
+        if self.motion_demos not in ("fixed", "all"):
+            raise ValueError(f"protocol.motion_demos must be 'fixed' or 'all', got '{self.motion_demos}'")
         if self.video_width < 16 or self.video_height < 16:
             raise ValueError(f"protocol.video_width/video_height must be >= 16, got {self.video_width}x"
                              f"{self.video_height}")
