@@ -141,6 +141,15 @@ def test_table_4_3_job_end_to_end(system, overrides, run_job, tmp_path):
     assert "Table 4.3" in report and "ablation" in report and "Why trials failed" in report
 
 
+def test_render_demo_writes_the_video_and_its_strip(run_job):
+    """``data/render_demo`` records the expert through the same frame recorder and video writer as Table 4.3."""
+    job = run_job("experiment=data/render_demo", "hydra.mode=RUN", "env=package_to_order_2of3", "protocol.width=64",
+                  "protocol.height=48", "protocol.frame_skip=8", "protocol.publish_dir=null")
+    videos = {a.path for a in job.client.list_artifacts(job.run.info.run_id, "video")}
+    assert videos == {"video/2of3.mp4", "video/2of3_strip.jpg"}
+    assert job.metrics["success"] == 1.0 and job.metrics["frames"] == job.metrics["steps"] // 8 > 0
+
+
 @pytest.mark.parametrize("overrides,key", [
     (["tamp=drl", "motion=tc_vi"], "tamp=drl"),
     (["tamp=rm_rrt_connect", "motion=tc_vi"], "motion=rrt_connect"),

@@ -112,7 +112,7 @@ def tamp_trials(ctx: RunContext, reasoner, motion) -> pd.DataFrame:
 
 def tamp_videos(ctx: RunContext, reasoner, motion) -> list:
     from hrc_lab.tamp.algorithm2 import run_tamp
-    from hrc_lab.tamp.video import FrameRecorder, write_video
+    from hrc_lab.tamp.video import FrameRecorder, save_video
 
     protocol, paths = ctx.cfg.protocol, []
     for case in CASES:
@@ -123,7 +123,7 @@ def tamp_videos(ctx: RunContext, reasoner, motion) -> list:
         recorder.text = "packed" if out.success else f"failed: {out.failure}"
         recorder.frames.append(recorder.frame())
         name = f"{ctx.cfg.tamp.name}_{ctx.cfg.env.cell}_case{case}.mp4"
-        paths += write_video(recorder.frames, ctx.output_dir / name, cell.control_freq / protocol.frame_skip)
+        paths += save_video(recorder.frames, ctx.output_dir / name, cell.control_freq / protocol.frame_skip)
         cell.close()
     return paths
 
@@ -209,7 +209,7 @@ def drl_trials(ctx: RunContext, agent) -> pd.DataFrame:
 
 
 def drl_videos(ctx: RunContext, agent) -> list:
-    from hrc_lab.tamp.video import FrameRecorder, write_video
+    from hrc_lab.tamp.video import FrameRecorder, save_video
 
     protocol, paths = ctx.cfg.protocol, []
     for case in CASES:
@@ -222,7 +222,7 @@ def drl_videos(ctx: RunContext, agent) -> list:
         recorder.text = "packed" if row["success"] else f"failed: {row['failure']}"
         recorder.frames.append(recorder.frame())
         name = f"drl_{ctx.cfg.env.cell}_case{case}.mp4"
-        paths += write_video(recorder.frames, ctx.output_dir / name, cell.control_freq / protocol.frame_skip)
+        paths += save_video(recorder.frames, ctx.output_dir / name, cell.control_freq / protocol.frame_skip)
         cell.close()
     return paths
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import shutil
 import time
 from pathlib import Path
@@ -136,39 +135,29 @@ def collect(ctx: RunContext) -> dict[str, float]:
 
 def render_demo(ctx: RunContext) -> dict[str, float]:
     """One expert episode rendered off-screen to ``<output dir>/<scenario>.mp4`` (and ``protocol.publish_dir``)."""
-    os.environ.setdefault("MUJOCO_GL", "egl")
-    import cv2
     from hydra.core.hydra_config import HydraConfig
 
     from hrc_lab.env.robot.expert import ScriptedExpert
+    from hrc_lab.tamp.video import FrameRecorder, save_video
 
     protocol = ctx.cfg.protocol
     scenario = getattr(ctx.cfg.env, "scenario", ctx.cfg.env.cell)
-    env = ENVS.build(ctx.cfg.env, seed=ctx.seed, has_offscreen_renderer=True, camera_names=protocol.camera,
-                   camera_heights=protocol.height, camera_widths=protocol.width)
-    expert = ScriptedExpert(env)
+    cell = ENVS.build(ctx.cfg.env, seed=ctx.seed, has_offscreen_renderer=True, camera_names=protocol.camera,
+                      camera_heights=protocol.height, camera_widths=protocol.width)
+    env = FrameRecorder(cell, protocol.camera, protocol.width, protocol.height, protocol.frame_skip)
     env.reset()
-    expert.reset()
-    out = Path(HydraConfig.get().runtime.output_dir) / f"{scenario}.mp4"
-    writer = cv2.VideoWriter(str(out), cv2.VideoWriter_fourcc(*"mp4v"), env.control_freq / protocol.frame_skip,
-                             (protocol.width, protocol.height))
-    frames, steps, info = [], 0, {"success": False}
+    expert = ScriptedExpert(env)
+    info = {"success": False}
     with tqdm(desc=f"render {scenario}", unit="step") as bar:
         while (step := expert.act()) is not None and not env.done:
             _, _, _, info = env.step(step.action)
-            if steps % protocol.frame_skip == 0:
-                frame = env.sim.render(camera_name=protocol.camera, width=protocol.width, height=protocol.height)
-                frames.append(cv2.cvtColor(np.flipud(frame), cv2.COLOR_RGB2BGR))  # OpenGL rows are bottom-up
-                writer.write(frames[-1])
-            steps += 1
             bar.update()
-    writer.release()
-    strip = out.with_name(f"{scenario}_strip.jpg")  # four frames side by side, for pages that cannot play video
-    cv2.imwrite(str(strip), np.hstack([frames[i] for i in np.linspace(0, len(frames) - 1, 4).astype(int)]),
-                [cv2.IMWRITE_JPEG_QUALITY, 80])
-    for path in (out, strip):
+    out = Path(HydraConfig.get().runtime.output_dir) / f"{scenario}.mp4"
+    paths = save_video(env.frames, out, cell.control_freq / protocol.frame_skip)
+    cell.close()
+    for path in paths:
         ctx.tracker.log_artifact(path, "video")
         if protocol.publish_dir:
             Path(protocol.publish_dir).mkdir(parents=True, exist_ok=True)
             shutil.copy(path, Path(protocol.publish_dir) / path.name)
-    return {"success": float(bool(info.get("success"))), "steps": float(steps), "frames": float(len(frames))}
+    return {"success": float(bool(info.get("success"))), "steps": float(env.steps), "frames": float(len(env.frames))}

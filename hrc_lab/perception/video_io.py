@@ -1,5 +1,6 @@
-"""Video files of the Ch.5 pipeline: :func:`read_video` reads the RGB frames of any video OpenCV opens and
-:func:`write_video` writes RGB frames to an MP4 (``mp4v``)."""
+"""Video files: :func:`read_video` reads the RGB frames of any video OpenCV opens, :func:`write_video` writes RGB
+frames to an MP4 (``mp4v``) and :func:`write_strip` four of them side by side to a JPEG (for pages that cannot
+play video). Used by the Ch.5 pipeline and the robot cells' videos (``data/render_demo``, Table 4.3)."""
 
 from __future__ import annotations
 
@@ -31,10 +32,16 @@ def read_video(path: Path) -> tuple[list[np.ndarray], int]:
     return frames, fps
 
 
-def write_video(frames: list[np.ndarray], path: Path, fps: int) -> None:
+def write_video(frames: list[np.ndarray], path: Path, fps: float) -> None:
     """The RGB ``frames`` as an MP4 at ``path``."""
     h, w = frames[0].shape[:2]
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
     for frame in frames:
         writer.write(frame[..., ::-1])
     writer.release()
+
+
+def write_strip(frames: list[np.ndarray], path: Path) -> None:
+    """Four of the RGB ``frames``, evenly spaced from first to last, side by side as a JPEG at ``path``."""
+    picks = np.linspace(0, len(frames) - 1, 4).astype(int)
+    cv2.imwrite(str(path), np.hstack([frames[i] for i in picks])[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 80])

@@ -1,5 +1,6 @@
 """Videos of the learned systems (Table 4.3's report): a cell wrapper that renders every few control steps and
-writes the current decision on the frame, as the text overlay of the thesis' Fig. 4.12."""
+writes the current decision on the frame, as the text overlay of the thesis' Fig. 4.12; files are written by
+:mod:`hrc_lab.perception.video_io`."""
 
 from __future__ import annotations
 
@@ -40,20 +41,14 @@ class FrameRecorder:
         return image
 
 
-def write_video(frames: list[np.ndarray], path: Path, fps: float) -> list[Path]:
-    """``frames`` (RGB) as an MP4 at ``path`` and a strip of four of them beside it (``<stem>_strip.jpg``, for
-    pages that cannot play video). Returns both paths."""
-    import cv2
+def save_video(frames: list[np.ndarray], path: Path, fps: float) -> list[Path]:
+    """``frames`` (RGB) as an MP4 at ``path`` and its four-frame strip beside it (``<stem>_strip.jpg``); both
+    paths, for the run's artifacts."""
+    from hrc_lab.perception.video_io import write_strip, write_video
 
     if not frames:
         raise ValueError(f"{path.name}: no frame was rendered (the trial ended before the first frame)")
-    h, w = frames[0].shape[:2]
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
-    for frame in frames:
-        writer.write(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
-    writer.release()
     strip = path.with_name(f"{path.stem}_strip.jpg")
-    picks = np.linspace(0, len(frames) - 1, 4).astype(int)
-    cv2.imwrite(str(strip), cv2.cvtColor(np.hstack([frames[i] for i in picks]), cv2.COLOR_RGB2BGR),
-                [cv2.IMWRITE_JPEG_QUALITY, 80])
+    write_video(frames, path, fps)
+    write_strip(frames, strip)
     return [path, strip]
