@@ -168,16 +168,11 @@ def train_drl(ctx: RunContext):
 
 
 def drl_episode(agent, goal_env) -> dict:
-    """One deterministic episode from the goal env's next scene: success at its end (Eq. 4.7, no collision) and
-    the steps until the order was first packed."""
-    obs, _ = goal_env.reset()
-    first = None
-    truncated, info = False, {}
-    while not truncated:
-        action, _ = agent.predict(obs, deterministic=True)
-        obs, _, _, truncated, info = goal_env.step(action)
-        if info["is_success"] and first is None:
-            first = goal_env.elapsed_steps
+    """One deterministic episode from the goal env's next scene as a trial row: success at its end (Eq. 4.7, no
+    collision) and the steps per product until the order was first packed."""
+    from hrc_lab.rl.agent import run_episode
+
+    info, first = run_episode(agent, goal_env)
     success = bool(info["is_success"])
     n = goal_env.cell.spec.n_selected
     return {"success": success, "failure": "" if success else ("collision" if info["collided"] else "goal"),

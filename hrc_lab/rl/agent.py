@@ -211,21 +211,27 @@ def add_demonstrations(agent: DDPG, env: HRCGoalEnv, episodes: int, seed: int = 
     return float(np.mean(successes)) if successes else float("nan")
 
 
+def run_episode(agent: DDPG, env: HRCGoalEnv, seed: int | None = None) -> tuple[dict, int | None]:
+    """One episode of the deterministic policy from the env's next scene (reseeded with ``seed`` when given):
+    the last step's info and the step at which the goal was first reached (None if never)."""
+    obs, _ = env.reset(seed=seed)
+    first = None
+    truncated = terminated = False
+    while not (truncated or terminated):
+        action, _ = agent.predict(obs, deterministic=True)
+        obs, _, terminated, truncated, info = env.step(action)
+        if info["is_success"] and first is None:
+            first = env.elapsed_steps
+    return info, first
+
+
 def evaluate(agent: DDPG, env: HRCGoalEnv, episodes: int, seed: int = 0) -> dict[str, float]:
     """Success rate (Eq. 3.7 / 4.7 at the episode's last step), collision rate and mean final goal distance of
     the deterministic policy over ``episodes`` scenes (episode k seeded ``seed + k``)."""
-    success, collided, distance = [], [], []
-    for k in range(episodes):
-        obs, _ = env.reset(seed=seed + k)
-        truncated = terminated = False
-        while not (truncated or terminated):
-            action, _ = agent.predict(obs, deterministic=True)
-            obs, _, terminated, truncated, info = env.step(action)
-        success.append(info["is_success"])
-        collided.append(info["collided"])
-        distance.append(float(np.max(info["goal_distances"])))
-    return {"success_rate": float(np.mean(success)), "collision_rate": float(np.mean(collided)),
-            "final_distance": float(np.mean(distance))}
+    infos = [run_episode(agent, env, seed=seed + k)[0] for k in range(episodes)]
+    return {"success_rate": float(np.mean([i["is_success"] for i in infos])),
+            "collision_rate": float(np.mean([i["collided"] for i in infos])),
+            "final_distance": float(np.mean([np.max(i["goal_distances"]) for i in infos]))}
 
 
 # --- checkpoints ------------------------------------------------------------------------------------------------
