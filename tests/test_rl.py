@@ -182,6 +182,7 @@ def test_demonstrations_fill_the_buffer_with_whole_relabelled_episodes():
                         seed=0, cases=(1, 2))
     agent = build_ddpg_her(RLConfig(**{**TINY, "steps_per_subtask": 50}), env, seed=0)
     assert add_demonstrations(agent, env, 2, seed=1) == 1.0
+    assert env.moved() > 0.1  # the exploration diagnostic sees the packed products leave their starts
     buffer = agent.replay_buffer
     assert buffer.size() == 2 * env.horizon and buffer.ep_length[: buffer.size(), 0].tolist() == [env.horizon] * 200
     batch = buffer.sample(64)
@@ -252,7 +253,7 @@ def test_guided_ddpg_her_with_the_two_level_planner_runs_updates_in_the_cell(env
     logged = []
     learn_episodes(agent, 3, EpisodeMetrics(lambda metrics, step: logged.append((step, metrics)), every=2))
     assert [step for step, _ in logged] == [2] and set(logged[0][1]) == {
-        "train_success_rate", "train_collision_rate", "train_guidance_rate"}
+        "train_success_rate", "train_collision_rate", "train_grip_rate", "train_moved_rate", "train_guidance_rate"}
     assert agent._n_updates == STEPS and agent.guidance_counts["steps"] == 3 * STEPS
     assert 0 < agent.guidance_counts["corrected"] <= 3 * STEPS
     assert two_level_guide.object in (1, 2) and two_level_guide.index in (0, 1)

@@ -93,28 +93,36 @@ def build_guided_ddpg_her(cfg: RLConfig, env: HRCGoalEnv, guide: Any, seed: int 
 
 class EpisodeMetrics(BaseCallback):
     """Every ``every`` episodes, ``log(metrics, step)`` (e.g. ``RunTracker.log_metrics``) with the success rate
-    and collision rate of those episodes (their last step's ``is_success`` and ``collided``) and, for a
-    :class:`GuidedDDPG`, the guidance rate so far (corrected steps / steps); ``step`` is the episode count."""
+    and collision rate of those episodes (their last step's ``is_success`` and ``collided``), how exploration
+    reached the objects (``grip_rate``: share of episodes in which a part was held at some step; ``moved_rate``:
+    share in which a goal object moved more than ``moved_m`` from its start, the only episodes whose HER-relabelled
+    goals differ from the start) and, for a :class:`GuidedDDPG`, the guidance rate so far (corrected steps /
+    steps); ``step`` is the episode count."""
 
-    def __init__(self, log: Callable[..., None], every: int = 10, prefix: str = "train_") -> None:
+    def __init__(self, log: Callable[..., None], every: int = 10, prefix: str = "train_",
+                 moved_m: float = 0.02) -> None:
         super().__init__()
-        self.log, self.every, self.prefix = log, every, prefix
-        self.success: list[bool] = []
-        self.collided: list[bool] = []
+        self.log, self.every, self.prefix, self.moved_m = log, every, prefix, moved_m
+        self.episodes: list[dict[str, bool]] = []
+        self.held = self.moved = False
 
     def _on_step(self) -> bool:
         for done, info in zip(self.locals["dones"], self.locals["infos"]):
+            self.held |= bool(info["held"])
+            self.moved |= info["moved_m"] > self.moved_m
             if done:
-                self.success.append(bool(info["is_success"]))
-                self.collided.append(bool(info["collided"]))
-        if len(self.success) >= self.every:
-            metrics = {f"{self.prefix}success_rate": float(np.mean(self.success)),
-                       f"{self.prefix}collision_rate": float(np.mean(self.collided))}
+                self.episodes.append({"success_rate": bool(info["is_success"]),
+                                      "collision_rate": bool(info["collided"]),
+                                      "grip_rate": self.held, "moved_rate": self.moved})
+                self.held = self.moved = False
+        if len(self.episodes) >= self.every:
+            metrics = {f"{self.prefix}{key}": float(np.mean([episode[key] for episode in self.episodes]))
+                       for key in self.episodes[0]}
             if isinstance(self.model, GuidedDDPG):
                 metrics[f"{self.prefix}guidance_rate"] = self.model.guidance_rate
             horizon = self.model.get_env().envs[0].unwrapped.horizon
             self.log(metrics, step=self.model.num_timesteps // horizon)
-            self.success, self.collided = [], []
+            self.episodes = []
         return True
 
 

@@ -122,6 +122,8 @@ class HRCGoalEnv(gym.Env):
             "collided": collided,
             "collisions": list(self.cell.collisions),
             "goal_distances": self.goal_distances(),
+            "held": bool(self.cell.suction.held >= 0),
+            "moved_m": self.moved(),
         }
         truncated = self.elapsed_steps >= self.horizon
         return obs, reward, False, truncated, info
@@ -152,6 +154,11 @@ class HRCGoalEnv(gym.Env):
         the simulation is not stepped."""
         return self.cell.lip_kinematics(self.cell.joint_targets(self.to_cell_action(action)))[0]
 
+    def moved(self) -> float:
+        """How far the goal object that moved most is from where it was at the episode's start, m."""
+        difference = (self._achieved() - self._start).reshape(-1, self.dims_per_object)[:, :3]
+        return float(np.linalg.norm(difference, axis=1).max())
+
     def goal_distances(self) -> np.ndarray:
         """|P_obj - P_goal| of every goal object."""
         difference = (self._achieved() - self._desired).reshape(-1, self.dims_per_object)
@@ -181,6 +188,7 @@ class HRCGoalEnv(gym.Env):
             self.goal_objects = list(range(len(cell.cell_objects)))
             goals = cell.goals
         self._desired = np.asarray(goals, dtype=float).ravel()
+        self._start = self._achieved()
         self.elapsed_steps = 0
 
     def _poses(self) -> np.ndarray:
