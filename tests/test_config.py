@@ -116,8 +116,12 @@ def test_every_experiment_has_a_report_section_and_topic(compose_config, experim
     assert (cfg.name, cfg.table) in {part for *_, parts in TOPICS.values() for part in parts}
 
 
-def test_table_3_1_rejects_an_unknown_stage_start_or_a_negative_placement_noise(compose_config):
-    with pytest.raises(ConfigError, match=r"protocol\.stage_starts"):
-        validate_config(compose_config("experiment=ch3/table_3_1", "protocol.stage_starts=[planned]"))
-    with pytest.raises(ConfigError, match=r"protocol\.placement_noise"):
-        validate_config(compose_config("experiment=ch3/table_3_1", "protocol.placement_noise=-0.01"))
+@pytest.mark.parametrize("override,key", [
+    ("protocol.stage_starts=[planned]", r"protocol\.stage_starts"),
+    ("protocol.placement_noise=-0.01", r"protocol\.placement_noise"),
+    ("protocol.stage_labels=oracle", r"protocol\.stage_labels must be one of \['classifier', 'ground_truth'\]"),
+    ("protocol.planner_input=relative", r"protocol\.planner_input must be one of \['full', 'selected'\]"),
+])
+def test_table_3_1_protocol_errors_name_the_key(compose_config, override, key):
+    with pytest.raises(ConfigError, match=key):
+        validate_config(compose_config("experiment=ch3/table_3_1", override))

@@ -18,6 +18,7 @@ from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier, base_frame, 
 from hrc_lab.motion.two_level import (
     TwoLevelMotion,
     classifier_pairs,
+    correction_input,
     correction_pairs,
     dynamics_pairs,
     package_pairs,
@@ -141,6 +142,33 @@ def test_correction_rollout_of_a_few_steps():
     out, final = run_correction(env, planner, ndp, classifier, n_subgoals=2, max_steps=2)
     assert out.steps > 0 and final.shape == (3, 3)
     assert out.failure in ("", "pick", "collision", "horizon")
+    assert out.picks and set(out.picks) <= {1, 2}  # the object c(x) sent each picking stage to
+
+
+def test_ground_truth_stage_labels_go_for_the_experts_objects_in_order():
+    """The diagnosis switch of Table 3.1: the expert's plan, not c(x), names each picking stage's object; a
+    classifier that always answers 'pick red' cannot change that."""
+    env = make_env(ErrorCorrectionConfig(task="two_object"), seed=0)  # case 1: blue first, then red
+    demos = expert_demos(env, 2, k=2, mode="resample")
+    pairs = correction_pairs(demos)
+    planner = build_subgoal_planner(SubgoalConfig(steps=5), 4).fit(pairs.x, pairs.labels, pairs.subgoals, tiny_trainer)
+    ndp = DynamicPlanner(NDPConfig(steps=5, hidden=16), env.max_joint_step, env.base_position())
+    ndp.fit(*dynamics_pairs(demos), tiny_trainer)
+    always_red = lambda x: np.full(len(x), 2)  # noqa: E731
+    wrong, _ = run_correction(env, planner, ndp, always_red, n_subgoals=2, max_steps=2)
+    right, _ = run_correction(env, planner, ndp, always_red, n_subgoals=2, max_steps=2, ground_truth_stages=True)
+    assert wrong.picks[0] == 2 and right.picks[0] == env.expert_plan()[0] == 1
+
+
+def test_the_selected_planner_input_keeps_the_labelled_object_green_and_r():
+    objects, r = np.arange(9.0).reshape(3, 3), np.array([10.0, 11.0, 12.0])
+    assert correction_input(objects, r, 1).tolist() == [*range(9), 10.0, 11.0, 12.0]  # full (3.3)
+    np.testing.assert_array_equal(correction_input(objects, r, 2, "selected"), [6, 7, 8, 0, 1, 2, 10, 11, 12])
+    np.testing.assert_array_equal(correction_input(objects, r, 1, "selected"), [3, 4, 5, 0, 1, 2, 10, 11, 12])
+    with pytest.raises(ValueError, match="planner input must be one of"):
+        correction_input(objects, r, 0, "relative")
+    env = make_env(ErrorCorrectionConfig(task="one_object"), seed=0)
+    assert correction_pairs(expert_demos(env, 1, k=2, mode="resample"), planner_input="selected").x.shape[1] == 9
 
 
 @pytest.mark.parametrize("experiment,overrides", [
@@ -151,6 +179,8 @@ def test_motion_experiment_end_to_end(experiment, overrides, run_job):
     tiny = ["hydra.mode=RUN", "trainer.max_epochs=1", "motion.steps=10", "motion.ndp.steps=10"]
     job = run_job(f"experiment={experiment}", *tiny, *overrides)
     assert "planning_ms=" in job.log
+    if experiment == "ch3/table_3_1":
+        assert 0 <= job.metrics["stage1_right"] <= 1  # where c(x) sent the picking stages, logged per run
     assert job.run.data.metrics["planning_ms"] == pytest.approx(job.metrics["planning_ms"], nan_ok=True)
 
 

@@ -32,13 +32,14 @@ def correction_demos(env, n: int, protocol, desc: str, placement_noise: float = 
     return demos
 
 
-def train_two_level(ctx: RunContext, env, demos):
-    """Task classifier c(x), sub-goal planner and neural dynamic planner from the demonstrations."""
+def train_two_level(ctx: RunContext, env, demos, planner_input: str = "full"):
+    """Task classifier c(x), sub-goal planner (observing ``planner_input``, see
+    :func:`~hrc_lab.motion.two_level.correction_input`) and neural dynamic planner from the demonstrations."""
     from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier
     from hrc_lab.motion.two_level import classifier_pairs, correction_pairs, dynamics_pairs
 
     classifier = StageClassifier(4, seed=ctx.seed).fit(*classifier_pairs(demos), lambda: ctx.trainer("classifier"))
-    pairs = correction_pairs(demos, tuple(ctx.cfg.protocol.stage_starts))
+    pairs = correction_pairs(demos, tuple(ctx.cfg.protocol.stage_starts), planner_input)
     planner = MOTIONS.build(ctx.cfg.motion, n_labels=4, n_subgoals=ctx.cfg.protocol.subgoals_per_stage, seed=ctx.seed)
     planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"), pairs.indices)
     ndp = DynamicPlanner(ctx.cfg.motion.ndp, env.max_joint_step, env.base_position(), seed=ctx.seed)
@@ -53,12 +54,16 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
     env = ENVS.build(config, seed=ctx.seed)
     demos = correction_demos(env, protocol.demos, protocol, f"demos {config.cell}", protocol.placement_noise,
                              ctx.rng(5))
-    classifier, planner, ndp = train_two_level(ctx, env, demos)
+    classifier, planner, ndp = train_two_level(ctx, env, demos, protocol.planner_input)
     test = ENVS.build(config, seed=1000 + ctx.seed)
-    rows = []
+    rows, stage_rows = [], []
     for trial in tqdm(range(protocol.trials), desc=f"table 3.1 {config.cell}", unit="trial"):
         out, final = run_correction(test, planner, ndp, classifier, protocol.subgoals_per_stage,
-                                    protocol.max_steps_per_subgoal, protocol.tolerance)
+                                    protocol.max_steps_per_subgoal, protocol.tolerance,
+                                    ground_truth_stages=protocol.stage_labels == "ground_truth",
+                                    planner_input=protocol.planner_input)
+        stage_rows += [{"trial": trial, "stage": k, "picked": COLOURS[obj], "expert": COLOURS[expert]}
+                       for k, (obj, expert) in enumerate(zip(out.picks, test.expert_plan()))]
         for obj in test.expert_plan():
             distance = float(np.linalg.norm(final[obj] - test.goals[obj]))
             row = {"trial": trial, "object": COLOURS[obj], "distance": distance, "collision": bool(test.collisions),
@@ -79,6 +84,21 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
     per_trial = trials.drop_duplicates("trial")
     for failure in ("pick", "collision", "horizon"):
         metrics[f"fail_{failure}"] = float((per_trial.failure == failure).mean())
+    return metrics | stage_metrics(pd.DataFrame(stage_rows), ctx)
+
+
+def stage_metrics(stages: pd.DataFrame, ctx: RunContext) -> dict[str, float]:
+    """Which object each picking stage went for (c(x)'s choice, or the expert's with ground-truth stage labels):
+    ``stage<k>_right`` the share of stage-k starts that chose the expert's object, ``stage<k>_repeat`` the share that
+    went back for the object an earlier stage had already moved; the rows go to the run's ``stages`` table."""
+    ctx.tracker.log_table(stages, "stages")
+    metrics = {}
+    for k, part in stages.groupby("stage"):
+        metrics[f"stage{k + 1}_right"] = float((part.picked == part.expert).mean())
+        if k > 0:
+            earlier = stages[stages.stage < k].groupby("trial").picked.agg(set)
+            metrics[f"stage{k + 1}_repeat"] = float(np.mean([p in earlier.get(t, set())
+                                                              for t, p in zip(part.trial, part.picked)]))
     return metrics
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
-from hrc_lab.motion.configs import STAGE_STARTS
+from hrc_lab.motion.configs import PLANNER_INPUTS, STAGE_LABELS, STAGE_STARTS
 from hrc_lab.registry import Registry
 
 PROTOCOLS = Registry("protocol")
@@ -358,7 +358,11 @@ class Table31Protocol:
     ``subgoals_per_stage`` re-sampled sub-goals per stage, ``trials`` closed-loop trials scored per object at
     each threshold in ``thresholds`` (delta_r). ``stage_starts``: where each stage's chain of training pairs
     begins (``hrc_lab.motion.two_level.correction_pairs``). ``placement_noise``: std (m, per x-y axis) of the
-    expert's aim around each goal when it places a part (``hrc_lab.env.robot.expert.ScriptedExpert``)."""
+    expert's aim around each goal when it places a part (``hrc_lab.env.robot.expert.ScriptedExpert``).
+    ``stage_labels``: what names the object each picking stage goes for: ``classifier`` (the thesis' c(x)) or
+    ``ground_truth`` (the expert's plan; a diagnosis of c(x), reported as an ablation). ``planner_input``: what the
+    sub-goal planner observes besides r, ``full`` (the thesis' three object positions) or ``selected`` (the
+    labelled object's and green's, :func:`hrc_lab.motion.two_level.correction_input`; an ablation)."""
 
     demos: int = 20
     trials: int = 50
@@ -370,8 +374,15 @@ class Table31Protocol:
     # demonstrated (the change point) and/or executed (the previous stage's last sub-goal, as the closed loop starts it)
     stage_starts: list[str] = field(default_factory=lambda: ["demonstrated"])
     placement_noise: float = 0.0
+    stage_labels: str = "classifier"
+    planner_input: str = "full"
 
     def __post_init__(self) -> None:
+        if self.stage_labels not in STAGE_LABELS:
+            raise ValueError(f"protocol.stage_labels must be one of {list(STAGE_LABELS)}, got '{self.stage_labels}'")
+        if self.planner_input not in PLANNER_INPUTS:
+            raise ValueError(f"protocol.planner_input must be one of {list(PLANNER_INPUTS)}, "
+                             f"got '{self.planner_input}'")
         if self.placement_noise < 0:
             raise ValueError(f"protocol.placement_noise must be >= 0 m, got {self.placement_noise}")
         if self.demos < 1 or self.trials < 1:

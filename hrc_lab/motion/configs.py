@@ -11,6 +11,10 @@ MOTIONS = Registry("motion")
 
 # Where a Ch.3 stage's chain of training pairs begins (hrc_lab.motion.two_level.correction_pairs)
 STAGE_STARTS = ("demonstrated", "executed")
+# What names the object a Ch.3 picking stage goes for (hrc_lab.motion.two_level.run_correction)
+STAGE_LABELS = ("classifier", "ground_truth")
+# What the Ch.3 sub-goal planner observes besides r (hrc_lab.motion.two_level.correction_input)
+PLANNER_INPUTS = ("full", "selected")
 
 
 @dataclass

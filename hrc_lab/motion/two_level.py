@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hrc_lab.env.robot.cell import PICK, PLACE
-from hrc_lab.motion.configs import STAGE_STARTS
+from hrc_lab.motion.configs import PLANNER_INPUTS, STAGE_STARTS
 
 RELEASE = np.array([0.0, 0.0, 0.0, -1.0])
 GRIP = np.array([0.0, 0.0, 0.0, 1.0])
@@ -65,10 +65,24 @@ def package_pairs(demos) -> SubgoalPairs:
     return SubgoalPairs(np.array(xs), np.array(labels), np.array(targets), np.array(groups), np.array(indices))
 
 
-def correction_pairs(demos, starts: tuple[str, ...] = ("demonstrated",)) -> SubgoalPairs:
+def correction_input(objects: np.ndarray, r: np.ndarray, label: int, kind: str = "full") -> np.ndarray:
+    """x of the Ch.3 sub-goal planner for stage ``label``: ``full`` (3.3) the three object positions and r;
+    ``selected`` the position of the object the label names, green's (the goals' reference) and r, like Ch.4's
+    reduced observation (o_selected, r); not in the thesis' Ch.3. Positions stay absolute (relative to r they
+    are a linear map of the same numbers, and the planner's r jitter, ``SubgoalConfig.r_jitter_m``, moves r alone)."""
+    if kind not in PLANNER_INPUTS:
+        raise ValueError(f"planner input must be one of {list(PLANNER_INPUTS)}, got '{kind}'")
+    objects = np.asarray(objects).reshape(-1, 3)
+    if kind == "selected":
+        objects = objects[[label // 2 + 1, 0]]  # labels count blue (1) and red (2); green (0) is never moved
+    return np.concatenate([objects.ravel(), r])
+
+
+def correction_pairs(demos, starts: tuple[str, ...] = ("demonstrated",), planner_input: str = "full") -> SubgoalPairs:
     """Ch.3 pairs (3.3): per change-point stage, its re-sampled sub-goals, each planned from x = [3 object
-    positions, r at the previous sub-goal], with the label of the detected stage. ``starts`` says where a stage's
-    chain begins; with both, every stage gives two chains with the same targets:
+    positions, r at the previous sub-goal] (or the ``planner_input`` of :func:`correction_input`), with the label
+    of the detected stage. ``starts`` says where a stage's chain begins; with both, every stage gives two chains
+    with the same targets:
 
     - ``demonstrated``: objects and the demonstrator's lip at the detected stage start. The change point falls
       after the expert has moved on (the lip leads the measured end effector by one step, a placed part is
@@ -91,10 +105,11 @@ def correction_pairs(demos, starts: tuple[str, ...] = ("demonstrated",)) -> Subg
                 at_rest = demo.obs["object_pos"][start]
             chains = {"demonstrated": (demo.obs["object_pos"][start], demo.obs["lip_target_pos"][start]),
                       "executed": (at_rest, ended)}
+            label = 2 * (obj - 1) + stage
             for objects, previous in (chains[name] for name in starts):
                 for i, point in enumerate(points):
-                    xs.append(np.concatenate([objects, previous]))
-                    labels.append(2 * (obj - 1) + stage)
+                    xs.append(correction_input(objects, previous, label, planner_input))
+                    labels.append(label)
                     targets.append(point)
                     groups.append(k)
                     indices.append(i)
@@ -129,6 +144,7 @@ class Rollout:
     planning_ms: list[float] = field(default_factory=list)
     object_steps: dict[int, int] = field(default_factory=dict)  # object -> steps spent on it
     failure: str = ""
+    picks: list[int] = field(default_factory=list)  # Ch.3: the object each picking stage went for, in order
 
 
 def reach(env, ndp, subgoal: np.ndarray, suction: bool, max_steps: int, tolerance: float) -> tuple[int, bool]:
@@ -203,26 +219,35 @@ def run_package(env, motion: TwoLevelMotion) -> Rollout:
 
 
 def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps: int = 30,
-                   tolerance: float = 0.008) -> tuple[Rollout, np.ndarray]:
+                   tolerance: float = 0.008, ground_truth_stages: bool = False,
+                   planner_input: str = "full") -> tuple[Rollout, np.ndarray]:
     """One error-correction trial: for each manipulation the case needs, the classifier c(x) labels the stage
     from the raw observation at its start (which object to pick), the placing stage of that object follows, and
-    the planner proposes the sub-goals of each stage. Returns the rollout and the final object positions."""
+    the planner proposes the sub-goals of each stage. ``ground_truth_stages``: the expert's plan names the object
+    to pick instead of c(x) (a diagnosis of the classifier, not the thesis' system); ``planner_input`` as the
+    planner was trained (:func:`correction_input`). Returns the rollout (with the
+    object each picking stage went for) and the final object positions."""
     env.reset()
     out = Rollout()
     label = 0
-    for k in range(2 * len(env.expert_plan())):
-        if k % 2 == 0:
+    order = env.expert_plan()
+    for k in range(2 * len(order)):
+        if k % 2 == 1:
+            label += 1
+        elif ground_truth_stages:
+            label = env.stage_label(order[k // 2], PICK)
+        else:
             x = np.concatenate([env.object_positions().ravel(), env.eef_position()])
             label = 2 * (int(classifier(x[None])[0]) // 2)  # the picking label of the object c(x) points at
-        else:
-            label += 1
         obj, stage = divmod(label, 2)
         obj += 1  # labels count blue (1) and red (2); green is never moved
+        if stage == PICK:
+            out.picks.append(obj)
         objects = env.object_positions().ravel()
         before = out.steps
         for i in range(n_subgoals):
-            subgoal = plan(planner, np.concatenate([objects, env.lip_target_position()]), label, i,
-                           out.planning_ms)
+            subgoal = plan(planner, correction_input(objects, env.lip_target_position(), label, planner_input), label,
+                           i, out.planning_ms)
             steps, fine = reach(env, ndp, subgoal, stage == PLACE or i > 0, max_steps, tolerance)
             out.steps += steps
             if not fine:

@@ -31,6 +31,7 @@ import numpy as np
 from stable_baselines3 import DDPG
 
 from hrc_lab.env.robot.cell import PICK, PLACE
+from hrc_lab.motion.two_level import correction_input
 
 
 def needs_correction(predicted: np.ndarray, subgoal: np.ndarray, delta_g: float) -> bool:
@@ -109,7 +110,7 @@ class CorrectionGuide:
                 else:
                     self.done = True  # the stage's last sub-goal: hold it
         if self.current is None:
-            x = np.concatenate([self.objects, env.lip()])
+            x = correction_input(self.objects, env.lip(), self.label)
             mean, _ = self.planner.predict(x[None], np.array([self.label]), np.array([self.index]))
             self.current, self.steps = mean[0], 0
         self.steps += 1
