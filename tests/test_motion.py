@@ -7,6 +7,7 @@ import math
 
 import lightning.pytorch as pl
 import numpy as np
+import pandas as pd
 import pytest
 import torch
 
@@ -228,3 +229,19 @@ def test_correction_pairs_start_each_stage_as_demonstrated_and_as_executed():
         np.testing.assert_allclose(pairs.subgoals, points.reshape(-1, 3))
     with pytest.raises(ValueError, match="stage starts"):
         correction_pairs([demo], ("planned",))
+
+
+def test_table_3_1_report_shows_where_the_picking_stages_went():
+    from hrc_lab.report.ch3_motion import table_3_1
+
+    runs = pd.DataFrame([{"method": "tc_vi", "scenario": "two_object_case1", "seed": seed,
+                          "sr_blue_0.08": 0.5, "sr_blue_0.06": 0.5, "sr_red_0.08": 0.0, "sr_red_0.06": 0.0,
+                          "steps_blue": 32.0, "steps_red": 34.0, "fail_pick": 0.9,
+                          "stage1_right": 1.0, "stage2_right": right, "stage2_repeat": 1 - right,
+                          "stage2_pick_xy_m": 0.08, "stage2_moved_error_m": 0.03}
+                         for seed, right in ((0, 0.6), (1, 0.8))])
+    section = table_3_1(runs)
+    assert "Where each picking stage went" in section.markdown
+    stages = section.markdown.split("Where each picking stage went")[1]
+    row = next(line for line in stages.splitlines() if line.startswith("| tc_vi    | two_object_case1 |"))
+    assert "0.7 " in row  # stage2_right, the mean over seeds

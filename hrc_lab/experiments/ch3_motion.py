@@ -62,8 +62,12 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
                                     protocol.max_steps_per_subgoal, protocol.tolerance,
                                     ground_truth_stages=protocol.stage_labels == "ground_truth",
                                     planner_input=protocol.planner_input)
-        stage_rows += [{"trial": trial, "stage": k, "picked": COLOURS[obj], "expert": COLOURS[expert]}
-                       for k, (obj, expert) in enumerate(zip(out.picks, test.expert_plan()))]
+        offsets = out.pick_offsets + [np.full(3, np.nan)] * (len(out.picks) - len(out.pick_offsets))
+        stage_rows += [{"trial": trial, "stage": k, "picked": COLOURS[obj], "expert": COLOURS[expert],
+                        "moved_error_m": moved, "pick_xy_m": float(np.linalg.norm(offset[:2])),
+                        "pick_z_m": float(offset[2])}
+                       for k, (obj, expert, offset, moved) in enumerate(zip(out.picks, test.expert_plan(), offsets,
+                                                                            out.moved_errors))]
         for obj in test.expert_plan():
             distance = float(np.linalg.norm(final[obj] - test.goals[obj]))
             row = {"trial": trial, "object": COLOURS[obj], "distance": distance, "collision": bool(test.collisions),
@@ -90,12 +94,18 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
 def stage_metrics(stages: pd.DataFrame, ctx: RunContext) -> dict[str, float]:
     """Which object each picking stage went for (c(x)'s choice, or the expert's with ground-truth stage labels):
     ``stage<k>_right`` the share of stage-k starts that chose the expert's object, ``stage<k>_repeat`` the share that
-    went back for the object an earlier stage had already moved; the rows go to the run's ``stages`` table."""
+    went back for the object an earlier stage had already moved; ``stage<k>_pick_xy_m`` / ``_pick_z_m`` the median
+    horizontal distance and height of the lip from the picked object's top-face centre where the picking stage
+    ended (the cup grips within the face, 2.5 cm of its centre), ``stage<k>_moved_error_m`` the median distance of
+    the objects moved before stage k from their goals at its start; the rows go to the run's ``stages`` table."""
     ctx.tracker.log_table(stages, "stages")
     metrics = {}
     for k, part in stages.groupby("stage"):
         metrics[f"stage{k + 1}_right"] = float((part.picked == part.expert).mean())
+        metrics[f"stage{k + 1}_pick_xy_m"] = float(part.pick_xy_m.median())
+        metrics[f"stage{k + 1}_pick_z_m"] = float(part.pick_z_m.median())
         if k > 0:
+            metrics[f"stage{k + 1}_moved_error_m"] = float(part.moved_error_m.median())
             earlier = stages[stages.stage < k].groupby("trial").picked.agg(set)
             metrics[f"stage{k + 1}_repeat"] = float(np.mean([p in earlier.get(t, set())
                                                               for t, p in zip(part.trial, part.picked)]))

@@ -145,6 +145,10 @@ class Rollout:
     object_steps: dict[int, int] = field(default_factory=dict)  # object -> steps spent on it
     failure: str = ""
     picks: list[int] = field(default_factory=list)  # Ch.3: the object each picking stage went for, in order
+    # Ch.3: the lip minus the picked object's top-face centre when each picking stage ended (before the grip), m
+    pick_offsets: list[np.ndarray] = field(default_factory=list)
+    # Ch.3: at each picking stage's start, how far the objects moved before it are from their goals (worst), m
+    moved_errors: list[float] = field(default_factory=list)
 
 
 def reach(env, ndp, subgoal: np.ndarray, suction: bool, max_steps: int, tolerance: float) -> tuple[int, bool]:
@@ -242,6 +246,8 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
         obj, stage = divmod(label, 2)
         obj += 1  # labels count blue (1) and red (2); green is never moved
         if stage == PICK:
+            errors = [np.linalg.norm(env.object_positions()[o] - env.goals[o]) for o in out.picks]
+            out.moved_errors.append(float(max(errors, default=np.nan)))
             out.picks.append(obj)
         objects = env.object_positions().ravel()
         before = out.steps
@@ -254,6 +260,8 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
                 out.failure = "collision" if env.collisions else "horizon"
                 return out, env.object_positions()
         if stage == PICK:  # the picking stage ends at the top face: hold still one step with suction on
+            top = env.object_positions()[obj] + np.array([0.0, 0.0, env.cell_objects[obj].half_size[2]])
+            out.pick_offsets.append(env.eef_position() - top)
             env.step(GRIP)
             out.steps += 1
             if env.suction.held != obj:
