@@ -92,3 +92,16 @@ def test_collect_job_writes_demos_and_metrics(run_job, base_run_name):
     assert run.data.metrics["expert_success_rate"] == 1.0
     assert 0.8 <= run.data.metrics["segmentation_agreement"] <= 1.0
     assert run.data.metrics["env_steps_per_s"] > 0
+
+
+def test_a_stage_without_a_path_is_left_out_not_a_crash(demo, monkeypatch):
+    """A change point at a stage's very start (seen with the expert's placement noise) leaves no path to
+    re-sample: the stage is left out, and Table 3.1's demonstrations then drop that demo (stages != 2 per object)."""
+    import hrc_lab.data.segmentation as segmentation
+
+    demo, env = demo
+    stages = detect_stages(demo.obs["object_pos"].reshape(len(demo), -1, 3))
+    empty = segmentation.Stage(stages[1].obj, stages[1].stage, stages[1].start, stages[1].start)
+    monkeypatch.setattr(segmentation, "detect_stages", lambda *args: [stages[0], empty, *stages[2:]])
+    bounds, subgoals = stage_subgoals(demo, env.stage_label, 5, "resample")
+    assert len(bounds) == len(subgoals) == len(stages) - 1

@@ -110,6 +110,8 @@ def stage_subgoals(demo, label_of: Callable[[int, int], int], k: int, mode: str 
             path = eef[min(s.start + 1, len(eef) - 1) : s.end + 1]
             if s.stage == PICK and pick_ends == "contact":  # end at the grip: the path's lowest point
                 path = path[: int(np.argmin(path[:, 2])) + 1]
+            if len(path) == 0:
+                continue  # a change point at the stage's start (e.g. a part nudged as the cup arrives): no path
             points.append(resample(path, k))
         else:
             steps = demo.stage_labels == label_of(s.obj, s.stage)

@@ -17,7 +17,8 @@ COLOURS = {1: "blue", 2: "red"}
 def correction_demos(env, n: int, protocol, desc: str, placement_noise: float = 0.0,
                      rng: np.random.Generator | None = None) -> list:
     """Expert demonstrations with their change-point stages and ``protocol.subgoals_per_stage`` re-sampled
-    sub-goals per stage (3.3); the expert aims its placements with ``placement_noise`` (m) drawn from ``rng``."""
+    sub-goals per stage (3.3); the expert aims its placements with ``placement_noise`` (m) drawn from ``rng``.
+    Kept: the successful demonstrations whose segmentation found a picking and a placing stage per moved object."""
     from hrc_lab.data.segmentation import stage_subgoals
     from hrc_lab.env.robot.expert import ScriptedExpert
     from hrc_lab.experiments.collect import record_episode
@@ -27,7 +28,7 @@ def correction_demos(env, n: int, protocol, desc: str, placement_noise: float = 
         demo = record_episode(env, expert)
         demo.stage_bounds, demo.stage_subgoals = stage_subgoals(
             demo, env.stage_label, protocol.subgoals_per_stage, "resample", protocol.segmentation_penalty)
-        if demo.success:
+        if demo.success and len(demo.stage_bounds) == 2 * len(env.expert_plan()):
             demos.append(demo)
     return demos
 
@@ -61,7 +62,8 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
         out, final = run_correction(test, planner, ndp, classifier, protocol.subgoals_per_stage,
                                     protocol.max_steps_per_subgoal, protocol.tolerance,
                                     ground_truth_stages=protocol.stage_labels == "ground_truth",
-                                    planner_input=protocol.planner_input)
+                                    planner_input=protocol.planner_input,
+                                    placement_oracle=protocol.placement_oracle)
         offsets = out.pick_offsets + [np.full(3, np.nan)] * (len(out.picks) - len(out.pick_offsets))
         stage_rows += [{"trial": trial, "stage": k, "picked": COLOURS[obj], "expert": COLOURS[expert],
                         "moved_error_m": moved, "pick_xy_m": float(np.linalg.norm(offset[:2])),
