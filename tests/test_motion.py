@@ -174,7 +174,8 @@ def test_the_selected_planner_input_keeps_the_labelled_object_green_and_r():
 
 @pytest.mark.parametrize("experiment,overrides", [
     ("ch4/table_4_2", ["env=package_to_order_2of3", "protocol.demos=3", "protocol.trials=2"]),
-    ("ch3/table_3_1", ["protocol.demos=2", "protocol.trials=1", "protocol.max_steps_per_subgoal=3"]),
+    ("ch3/table_3_1", ["protocol.demos=2", "protocol.trials=1", "protocol.max_steps_per_subgoal=3",
+                        "protocol.placement_oracle=true"]),
 ])
 def test_motion_experiment_end_to_end(experiment, overrides, run_job):
     tiny = ["hydra.mode=RUN", "trainer.max_epochs=1", "motion.steps=10", "motion.ndp.steps=10"]

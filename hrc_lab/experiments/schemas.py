@@ -362,7 +362,9 @@ class Table31Protocol:
     ``stage_labels``: what names the object each picking stage goes for: ``classifier`` (the thesis' c(x)) or
     ``ground_truth`` (the expert's plan; a diagnosis of c(x), reported as an ablation). ``planner_input``: what the
     sub-goal planner observes besides r, ``full`` (the thesis' three object positions) or ``selected`` (the
-    labelled object's and green's, :func:`hrc_lab.motion.two_level.correction_input`; an ablation)."""
+    labelled object's and green's, :func:`hrc_lab.motion.two_level.correction_input`; an ablation).
+    ``placement_oracle``: every released object is set exactly onto its goal before the next stage, so a second
+    object's trial starts as the demonstrations' did (a diagnosis; the first object's SR is then not a result)."""
 
     demos: int = 20
     trials: int = 50
@@ -376,6 +378,7 @@ class Table31Protocol:
     placement_noise: float = 0.0
     stage_labels: str = "classifier"
     planner_input: str = "full"
+    placement_oracle: bool = False
 
     def __post_init__(self) -> None:
         if self.stage_labels not in STAGE_LABELS:
