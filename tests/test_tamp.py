@@ -139,6 +139,7 @@ def test_table_4_3_job_end_to_end(system, overrides, run_job, tmp_path):
 
     report = build_topic("ch4_tamp", job.tracking_uri, tmp_path / "report").read_text()
     assert "Table 4.3" in report and "ablation" in report and "Why trials failed" in report
+    assert ("DRL training" in report) == (system == "drl")  # its demonstrations' success rate, at least
 
 
 def test_render_demo_writes_the_video_and_its_strip(run_job):

@@ -27,6 +27,28 @@ def _mean(runs: pd.DataFrame, system: str, metric: str, cell: str | None = None)
     return float(part[metric].mean()) if metric in part and len(part) else np.nan
 
 
+DRL_TRAINING = {"demo_success_rate": "demonstrations packed", "train_success_rate": "SR",
+                "train_grip_rate": "a part held", "train_moved_rate": "a goal object moved > 2 cm",
+                "train_collision_rate": "collided"}
+
+
+def _drl_training(runs: pd.DataFrame, cells: list[str]) -> list[str]:
+    """How the DRL agent's own exploration reached the parts, from its last logged training episodes."""
+    columns = [c for c in DRL_TRAINING if c in runs]
+    if runs.empty or not columns:
+        return []
+    table = runs.groupby("cell")[columns].mean().reindex([c for c in cells if c in set(runs.cell)])
+    table = table.rename(columns=DRL_TRAINING).round(2)
+    if "drl_train_s" in runs:
+        table["training wall time, min"] = (runs.groupby("cell").drl_train_s.mean() / 60).round(1)
+    return ["", "DRL training: the share of the last 20 training episodes (exploration noise on) in which the "
+                "agent packed the order, held a part at some step, moved a goal object more than 2 cm from its "
+                "start, or collided; and the share of the scripted demonstrations put in its replay buffer that "
+                "packed the order. HER relabels goals with positions the objects reached, so an episode in which "
+                "no goal object moved teaches only 'leave everything where it is'.", "",
+            table.reset_index().to_markdown(index=False)]
+
+
 @register_section("table_4_3")
 def table_4_3(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch4"]["table_4_3"]
@@ -101,6 +123,7 @@ def table_4_3(runs: pd.DataFrame) -> Section:
     if by_case.shape[1]:
         text += ["", "Reasoning and motion failures per case (share of that case's trials):", "",
                  by_case.rename(index=LABELS, level=0).reset_index().to_markdown(index=False)]
+    text += _drl_training(runs[runs.method == "drl"], cells)
     artifacts = {}
     for system in systems:
         part = runs[(runs.method == system) & (runs.cell == "3of5")].sort_values("seed")
