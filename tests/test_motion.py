@@ -246,3 +246,13 @@ def test_table_3_1_report_shows_where_the_picking_stages_went():
     stages = section.markdown.split("Where each picking stage went")[1]
     row = next(line for line in stages.splitlines() if line.startswith("| tc_vi    | two_object_case1 |"))
     assert "0.7 " in row  # stage2_right, the mean over seeds
+
+
+def test_table_3_1_report_marks_the_placement_oracle_as_a_diagnosis():
+    from hrc_lab.report.ch3_motion import table_3_1
+
+    row = {"method": "tc_vi", "scenario": "two_object_case1", "seed": 0, "sr_blue_0.08": 0.4, "sr_blue_0.06": 0.4,
+           "sr_red_0.08": 0.2, "sr_red_0.06": 0.2, "steps_blue": 30.0, "steps_red": 33.0}
+    oracle = table_3_1(pd.DataFrame([{**row, "param.protocol.placement_oracle": "True"}]))
+    default = table_3_1(pd.DataFrame([{**row, "param.protocol.placement_oracle": "False"}]))
+    assert "Diagnosis, not a result" in oracle.markdown and "Diagnosis, not a result" not in default.markdown

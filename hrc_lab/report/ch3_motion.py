@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting, spread  # noqa: E402
+from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting, setting_values, spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
 
@@ -75,6 +75,10 @@ def table_3_1(runs: pd.DataFrame) -> Section:
         "",
         pd.DataFrame(rows).to_markdown(index=False) if rows else "(no rows)",
     ]
+    if "True" in setting_values(runs, "protocol.placement_oracle"):
+        text += ["", "**Diagnosis, not a result**: with `protocol.placement_oracle=True` every released object was "
+                     "set exactly onto its goal before the next stage, so the first object's SR is inflated; read the "
+                     "second object's."]
     if fail_columns:
         text += ["", "Why trials ended early (share of trials): `pick` the cup did not hold the object after a "
                      "picking stage, `collision` a forbidden contact, `horizon` a sub-goal not reached in time.", "",
@@ -84,11 +88,10 @@ def table_3_1(runs: pd.DataFrame) -> Section:
         stages = runs.groupby(["method", "scenario"])[stage_columns].mean().round(3)
         text += ["", "Where each picking stage went (mean over seeds): `stageK_right` the share of stage-K starts "
                      "whose object was the expert's, `stageK_repeat` the share that went back for an object already "
-                     "moved; "
-                     "`stageK_pick_xy_m` / `_pick_z_m` the median horizontal distance and height (m) of the cup's lip "
-                     "from that object's top-face centre where the picking stage ended (the cup grips within the "
-                     "5 cm face, so within about 0.025 m of its centre); `stage2_moved_error_m` the median distance of "
-                     "the first object from its goal when the second picking stage started.", "",
+                     "moved; `stageK_pick_xy_m` / `_pick_z_m` the median horizontal distance and height (m) of the "
+                     "cup's lip from that object's top-face centre where the picking stage ended (the cup grips "
+                     "within the 5 cm face, so within about 0.025 m of its centre); `stage2_moved_error_m` the median "
+                     "distance of the first object from its goal when the second picking stage started.", "",
                  stages.reset_index().to_markdown(index=False)]
     if "planning_ms" in runs:
         text += ["", f"Sub-goal planning latency: **{runs.planning_ms.mean():.2f} ms** per sub-goal on one CPU core."]

@@ -95,9 +95,9 @@ class EpisodeMetrics(BaseCallback):
     """Every ``every`` episodes, ``log(metrics, step)`` (e.g. ``RunTracker.log_metrics``) with the success rate
     and collision rate of those episodes (their last step's ``is_success`` and ``collided``), how exploration
     reached the objects (``grip_rate``: share of episodes in which a part was held at some step; ``moved_rate``:
-    share in which a goal object moved more than ``moved_m`` from its start, the only episodes whose HER-relabelled
-    goals differ from the start) and, for a :class:`GuidedDDPG`, the guidance rate so far (corrected steps /
-    steps); ``step`` is the episode count."""
+    share in which a goal object moved more than ``moved_m`` from its start: without that, HER's relabelled
+    goals are all about where the parts already were) and, for a :class:`GuidedDDPG`, the guidance rate so far
+    (corrected steps / steps); ``step`` is the episode count."""
 
     def __init__(self, log: Callable[..., None], every: int = 10, prefix: str = "train_",
                  moved_m: float = 0.02) -> None:
