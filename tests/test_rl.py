@@ -192,6 +192,34 @@ def test_demonstrations_fill_the_buffer_with_whole_relabelled_episodes():
     assert agent.num_timesteps == 0  # demonstrations are not the agent's own steps
 
 
+def test_auto_suction_acts_with_the_joints_only_and_grips_what_the_cup_touches():
+    """rl.suction=auto, 3.3's action [q'_base, q'_shoulder, q'_elbow, q'_wrist3]: no suction dimension; the cup is
+    on in every step, grips the part under it and keeps it; the scripted demonstrations (which release) refuse."""
+    cfg = RLConfig(**TINY, suction="auto")
+    auto = make_goal_env(correction_cell(task="one_object", sim=SimSettings(horizon=400, yaw_action=True)), cfg, seed=0,
+                         subtask=0)
+    assert auto.action_space.shape == (4,) and not auto.suction_action
+    np.testing.assert_allclose(auto.to_cell_action(np.array([1.0, -1.0, 0.5, 0.0])),
+                               [auto.max_joint_step, -auto.max_joint_step, 0.5 * auto.max_joint_step, 0.0, 1.0])
+    auto.reset(seed=3)
+    cell, part = auto.cell, auto.goal_objects[0]
+    from hrc_lab.env.robot.expert import ScriptedExpert
+
+    expert = ScriptedExpert(cell)  # the expert's joint motion, with its suction command dropped
+    held_at = None
+    for t in range(cfg.steps_per_subtask * 6):
+        step = expert.act()
+        if step is None:
+            break
+        auto.step(np.clip(step.action[:-1] / auto.action_scale, -1.0, 1.0))
+        if cell.suction.held == part and held_at is None:
+            held_at = t
+    assert held_at is not None and cell.suction.held == part  # gripped on touch and never released
+    with pytest.raises(ValueError, match="rl.suction=action"):
+        add_demonstrations(build_ddpg_her(cfg, auto, seed=0), auto, 1)
+    auto.close()
+
+
 # --- Algorithm 1 ---------------------------------------------------------------------------------------------------
 
 
@@ -206,6 +234,8 @@ def test_correction_rule_on_hand_made_states():
     action = np.array([0.1, 0.2, 0.3, 0.4, -0.5])
     np.testing.assert_allclose(corrected_action(action, np.array([0.5, -1.5, 0.0]), 1.0), [0.5, -1.0, 0.0, 0.4, 1.0])
     np.testing.assert_allclose(action, [0.1, 0.2, 0.3, 0.4, -0.5])  # not modified in place
+    # rl.suction=auto: no suction dimension, wrist 3 (the last) stays the policy's
+    np.testing.assert_allclose(corrected_action(action[:4], np.array([0.5, -1.5, 0.0]), None), [0.5, -1.0, 0.0, 0.4])
 
 
 @pytest.mark.parametrize("lam", [1.0, 0.0])
@@ -291,6 +321,7 @@ def test_checkpoint_round_trip_resumes_training(env, tmp_path, monkeypatch):
     ({"delta_g": 0.0}, "rl.delta_g"),
     ({"delta_g": -0.05}, "rl.delta_g"),
     ({"guidance": "expert"}, "rl.guidance"),
+    ({"suction": "on"}, "rl.suction"),
     ({"steps_per_subtask": 0}, "rl.steps_per_subtask"),
     ({"goal_selection_strategy": "last"}, "rl.goal_selection_strategy"),
     ({"lamda": 0.5}, "rl.lamda"),

@@ -200,6 +200,8 @@ def add_demonstrations(agent: DDPG, env: HRCGoalEnv, episodes: int, seed: int = 
     ``seed``. Returns the share of demonstrations that ended in success."""
     from hrc_lab.env.robot.expert import ScriptedExpert
 
+    if not env.suction_action:
+        raise ValueError("demonstrations switch the cup on and off: they need rl.suction=action, got auto")
     still = np.zeros(env.action_space.shape[0], dtype=np.float32)
     still[-1] = -1.0
     successes = []

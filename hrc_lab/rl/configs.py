@@ -18,6 +18,7 @@ from hrc_lab.registry import Registry
 RLS = Registry("rl")
 
 GUIDANCES = ("none", "ndp", "ndp_direction")
+SUCTIONS = ("action", "auto")
 GOAL_STRATEGIES = ("future", "final", "episode")  # stable-baselines3's GoalSelectionStrategy values
 
 
@@ -28,6 +29,11 @@ class RLConfig:
     # --- episodes (3.3, 3.4.3); how many the agent trains is the protocol's (e.g. protocol.epochs) ---
     steps_per_subtask: int = 40  # control steps per pick-and-place subtask (3.4.3: "the max step is 40")
     delta_r: float | None = None  # delta_r of Eq. 3.6 / 4.7 while training; null: env.sim.success_threshold
+    # action: the policy's last action dimension switches the cup (on when > 0; a product is released where the
+    # agent chooses, which packing several products needs); auto: the action is the joints only, 3.3's
+    # [q'_base, q'_shoulder, q'_elbow, q'_wrist3], and the cup grips the part whose top face it touches and holds
+    # it to the episode's end (hrc_lab.rl.goal_env)
+    suction: str = "action"
     # --- DDPG (HER paper: Adam 1e-3, 3 x 256 ReLU layers, batch 256, gamma 0.98, polyak 0.95, 20 % Gaussian noise) ---
     learning_rate: float = 1e-3
     net_arch: list[int] = field(default_factory=lambda: [256, 256, 256])  # actor and critic hidden layers
@@ -78,6 +84,8 @@ class RLConfig:
         if self.goal_selection_strategy not in GOAL_STRATEGIES:
             raise ValueError(f"rl.goal_selection_strategy must be one of {list(GOAL_STRATEGIES)}, "
                              f"got '{self.goal_selection_strategy}'")
+        if self.suction not in SUCTIONS:
+            raise ValueError(f"rl.suction must be one of {list(SUCTIONS)}, got '{self.suction}'")
         if self.guidance not in GUIDANCES:
             raise ValueError(f"rl.guidance must be one of {list(GUIDANCES)}, got '{self.guidance}'")
         if not 0 <= self.lam <= 1:

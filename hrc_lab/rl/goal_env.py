@@ -17,7 +17,10 @@ Reward, Eq. 3.6 / 4.7, on single goals or batches (``compute_reward`` recomputes
        -1   otherwise
 
 Action: the cell's ``[dq_base, dq_shoulder, dq_elbow, (dq_wrist3), suction]`` scaled to [-1, 1]: joint deltas in
-units of ``max_joint_step`` (5 degrees), suction on when > 0.
+units of ``max_joint_step`` (5 degrees), suction on when > 0 (``suction="action"``). With ``suction="auto"`` the
+action is the joint deltas only, as 3.3's ``[q'_base, q'_shoulder, q'_elbow, q'_wrist3]``: the cup is always on,
+so it grips the part whose top face it touches and holds it to the episode's end (until a collision disables it);
+Eq. 3.6 scores the part's pose, held or not.
 
 Episodes: error correction trains one subtask of the cell's correction plan per episode (``subtask`` k; the
 objects of the subtasks before k start at their goals, the state once those succeeded; ``subtask=None``: the
@@ -61,7 +64,7 @@ class HRCGoalEnv(gym.Env):
 
     def __init__(self, cell: HRCCell, subtask: int | None = 0, steps_per_subtask: int = 40,
                  delta_r: float | None = None, disable_effector_on_collision: bool = True,
-                 cases: tuple[int, ...] = ()) -> None:
+                 cases: tuple[int, ...] = (), suction: str = "action") -> None:
         if not isinstance(cell, ErrorCorrection | PackageToOrder):
             raise TypeError(f"HRCGoalEnv wraps ErrorCorrection or PackageToOrder cells, got {type(cell).__name__}")
         if steps_per_subtask < 1:
@@ -71,8 +74,11 @@ class HRCGoalEnv(gym.Env):
                              "has no reachable goal); use n_missing=0")
         if cases and (not isinstance(cell, PackageToOrder) or set(cases) - {1, 2}):
             raise ValueError(f"cases: a package-to-order cell draws CASE 1 or 2 per episode, got {list(cases)}")
+        if suction not in ("action", "auto"):
+            raise ValueError(f"rl.suction must be 'action' or 'auto', got '{suction}'")
         self.cell = cell
         self.cases = tuple(cases)
+        self.suction_action = suction == "action"
         self.subtask = subtask
         self.steps_per_subtask = steps_per_subtask
         self.delta_r = float(cell.success_threshold if delta_r is None else delta_r)
@@ -90,8 +96,8 @@ class HRCGoalEnv(gym.Env):
             raise ValueError(f"env.sim.horizon={cell.horizon} is shorter than an RL episode ({steps_per_subtask} "
                              f"steps x {n_subtasks} subtasks = {self.horizon})")
         n_joints = cell.policy_action_dim - 1
-        self.action_scale = np.concatenate([np.full(n_joints, cell.max_joint_step), [1.0]])
-        self.action_space = spaces.Box(-1.0, 1.0, (cell.policy_action_dim,), dtype=np.float32)
+        self.action_scale = np.concatenate([np.full(n_joints, cell.max_joint_step), [1.0] * self.suction_action])
+        self.action_space = spaces.Box(-1.0, 1.0, self.action_scale.shape, dtype=np.float32)
         goal = spaces.Box(-np.inf, np.inf, self._desired.shape, dtype=np.float32)
         self.observation_space = spaces.Dict({
             "observation": spaces.Box(-np.inf, np.inf, self._observation().shape, dtype=np.float32),
@@ -142,8 +148,9 @@ class HRCGoalEnv(gym.Env):
         return float(self.cell.max_joint_step)
 
     def to_cell_action(self, action: np.ndarray) -> np.ndarray:
-        """The cell's action (radians, suction command) for an action in [-1, 1]."""
-        return np.clip(np.asarray(action, dtype=float), -1.0, 1.0) * self.action_scale
+        """The cell's action (radians, suction command) for an action in [-1, 1] (the cup on with ``auto``)."""
+        scaled = np.clip(np.asarray(action, dtype=float), -1.0, 1.0) * self.action_scale
+        return scaled if self.suction_action else np.append(scaled, 1.0)
 
     def lip(self) -> np.ndarray:
         """p_t: the lip at the commanded joints (where the arm is going; the servo lags one control step)."""
@@ -214,10 +221,11 @@ class HRCGoalEnv(gym.Env):
 def make_goal_env(env_cfg: Any, rl_cfg: Any, seed: int | None = None, subtask: int | None = 0,
                   cases: tuple[int, ...] = ()) -> HRCGoalEnv:
     """The goal env of an ``env`` config of a robot cell (what ``ENVS.build`` makes of it) and an ``rl`` config
-    (``steps_per_subtask``, ``delta_r``); ``subtask`` as in :class:`HRCGoalEnv` (error correction only); ``cases``:
-    a package-to-order cell draws its CASE from these per episode (the DRL baseline of Table 4.3 trains on both)."""
+    (``steps_per_subtask``, ``delta_r``, ``suction``); ``subtask`` as in :class:`HRCGoalEnv` (error correction
+    only); ``cases``: a package-to-order cell draws its CASE from these per episode (the DRL baseline of Table 4.3
+    trains on both)."""
     from hrc_lab.env import ENVS
 
     cell = ENVS.build(env_cfg, seed=seed)
     return HRCGoalEnv(cell, subtask=subtask, steps_per_subtask=rl_cfg.steps_per_subtask, delta_r=rl_cfg.delta_r,
-                      cases=cases)
+                      cases=cases, suction=rl_cfg.suction)
