@@ -177,3 +177,73 @@ def test_pipeline_on_a_short_generated_session():
     assert [e.label for _, e in state.events] == [f"{steps[0].part}->p{steps[0].position}", SCREW]
     assert placed == [steps[1].robot]
     assert loop.finished
+
+
+def test_the_loop_drives_the_robot_cell_on_a_short_session(monkeypatch):
+    """Algorithm 3 with the robot (issue 21), oracle action detector: the worker's placement appears in the cell,
+    the screw makes the robot pick and place the expert's part, the session ends with the goal assembled, and
+    the side-by-side video holds the worker's frames plus the robot's motion."""
+    from hrc_lab.env.robot.factory import make_env
+    from hrc_lab.env.robot.settings import AssembleToOrderConfig
+    from hrc_lab.perception import sessions
+    from hrc_lab.tamp.video import FrameRecorder
+
+    spec = AssembleToOrderConfig(product={"o1": 1, "o2": 1}, n_positions=2, goals=[["o1", "o2"]], n_goals=1,
+                                 allowed_positions={"o1": [1, 2], "o2": [1, 2]})
+    seed = next(s for s in range(50) if [x.kind for x in session_script(spec, 0, np.random.default_rng(s), 0.9)]
+                == ["assemble", "screw"])
+    clip, steps = render_session(spec, spec.video, goal=0, seed=seed, p_screw=0.9, fast=False)
+    labels = action_labels(spec)
+    streams: list[WindowStream] = []
+
+    class RecordedStream(WindowStream):  # the session's own stream, so that the oracle sees its windows
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            streams.append(self)
+
+    class OracleDetector:  # the majority true label of the window being classified
+        cfg = ActionDetectorConfig()
+
+        def classify(self, track, crop, frames):
+            window = streams[-1].last
+            true = [x for x in clip.labels[window.start : window.end] if x != "none"]
+            return labels.index(max(set(true), key=true.count)), None
+
+    monkeypatch.setattr(sessions, "WindowStream", RecordedStream)
+    cell = make_env(spec, seed=0, has_offscreen_renderer=True, camera_names="cellview", camera_heights=96,
+                    camera_widths=128)
+    view, frames = FrameRecorder(cell, "cellview", 128, 96, frame_skip=4), []
+    result = sessions.run_session(OracleDetector(), TruthPlanner(spec, 0), spec, clip, steps, 0, 0, frames, cell,
+                                  view)
+    human, screw = steps
+    assert [(p.part, p.position, p.success) for p in result["human"]] == [(human.part, human.position, True)]
+    assert [(p.part, p.position, p.success) for p in result["placements"]] == [(*screw.robot, True)]
+    assert result["complete"] and result["assembly"] == [("o1", 1), ("o2", 2)] and result["sc"] == [True]
+    assert len(result["latency_s"]) == 1 and 0 < result["latency_s"][0] < 1.0
+    moving = result["placements"][0].steps // 4
+    assert len(frames) == len(clip.frames) + moving and frames[0].shape == (480, 640 + 640, 3)
+    cell.close()
+
+
+def test_a_video_without_a_hand_moves_no_robot():
+    """A video where the hand never appears: no window, no plan, no robot command; the cell stays as it was."""
+    from hrc_lab.env.robot.factory import make_env
+    from hrc_lab.env.robot.settings import AssembleToOrderConfig
+    from hrc_lab.perception.pipeline import annotate_frames
+    from hrc_lab.perception.robot_cell import CellHands
+
+    class NeverCalled:
+        cfg = ActionDetectorConfig()
+
+        def classify(self, *args):
+            raise AssertionError("no window should close without a hand")
+
+    spec = AssembleToOrderConfig()
+    cell = make_env(spec, seed=0)
+    hands = CellHands(cell)
+    loop = SemanticPlannerLoop(TruthPlanner(spec, 0), hands.robot, echo=None, human=hands.human)
+    frames = [np.full((VIDEO.height, VIDEO.width, 3), 128, np.uint8)] * 12
+    out, state, seen = annotate_frames(NeverCalled(), action_labels(spec), loop, frames, 0, hands)
+    assert seen == 0 and not state.windows and not state.events and len(out) == 12
+    assert hands.placements == [] and hands.human_placements == [] and cell.assembly() == []
+    cell.close()

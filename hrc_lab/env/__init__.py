@@ -14,20 +14,26 @@ OpenCV) are imported on demand.
 
 from hrc_lab.env.assembly.spec import AssembleToOrderSpec
 from hrc_lab.env.clutter.spec import ClutterSpec
-from hrc_lab.env.robot.settings import ErrorCorrectionConfig, PackageToOrderConfig, SimSettings
+from hrc_lab.env.robot.settings import (
+    AssembleToOrderConfig,
+    ErrorCorrectionConfig,
+    PackageToOrderConfig,
+    SimSettings,
+)
 from hrc_lab.env.robot.spec import PackageToOrderSpec
 from hrc_lab.registry import Registry
 
 ENVS = Registry("env")
-# ENVS.build(cfg, seed=...) makes the robosuite cell of a robot env; the Ch.5 assembly domain and the Ch.6 clutter
-# scenes are specifications that their protocols' generators read (nothing to build).
+# ENVS.build(cfg, seed=...) makes the robosuite cell of a robot env (the Ch.5 assembly spec's is the robot side of
+# its HRC loop); the Ch.6 clutter scenes are a specification that their protocols' generators read (nothing to build).
 ENVS.register("package_to_order", PackageToOrderConfig, "hrc_lab.env.robot.factory:make_env")
 ENVS.register("error_correction", ErrorCorrectionConfig, "hrc_lab.env.robot.factory:make_env")
-ENVS.register("assemble_to_order", AssembleToOrderSpec)
+ENVS.register("assemble_to_order", AssembleToOrderConfig, "hrc_lab.env.robot.factory:make_env")
 ENVS.register("clutter", ClutterSpec)
 
 __all__ = [
     "ENVS",
+    "AssembleToOrderConfig",
     "AssembleToOrderSpec",
     "ClutterSpec",
     "ErrorCorrectionConfig",

@@ -17,6 +17,7 @@ cache (:mod:`~hrc_lab.perception.dataset`), its windows at a method's sizes
 
 from __future__ import annotations
 
+import logging
 import tempfile
 from pathlib import Path
 
@@ -34,11 +35,13 @@ from hrc_lab.perception.detector_cache import load_or_train_action_detector, tra
 from hrc_lab.perception.figures import confusion_figure, session_strip
 from hrc_lab.perception.latency import classify_ms, tracking_ms_per_frame
 from hrc_lab.perception.pipeline import annotate_frames
+from hrc_lab.perception.robot_cell import CellHands, SideBySide
 from hrc_lab.perception.sessions import run_session
 from hrc_lab.perception.video_io import read_video, write_video
 from hrc_lab.reasoning.hrc_loop import SemanticPlannerLoop
 
 SPLIT, SESSIONS = 60, 61  # random streams
+log = logging.getLogger("hrc_lab")
 
 
 def cache_dir(ctx: RunContext) -> Path:
@@ -98,6 +101,18 @@ def fig_5_6(ctx: RunContext) -> dict[str, float]:
 
 # -- Table 5.2: whole sessions ----------------------------------------------------------------------------------------
 def table_5_2(ctx: RunContext) -> dict[str, float]:
+    """Table 5.2 end to end; the robot places what the video shows."""
+    return assembly_sessions(ctx, with_robot=False)
+
+
+def hrc_session(ctx: RunContext) -> dict[str, float]:
+    """The HRC loop with the robot (5.2.3, Figs. 5.8-5.10): Table 5.2's sessions, the robot cell executing every
+    Semantic Control command and holding every human placement; Table 5.2 extended with the robot's placement
+    success and the sessions that end with the goal assembled."""
+    return assembly_sessions(ctx, with_robot=True)
+
+
+def assembly_sessions(ctx: RunContext, with_robot: bool) -> dict[str, float]:
     spec, protocol = ctx.cfg.env, ctx.cfg.protocol
     data = action_set(ctx)
     detector = shared_detector(ctx, data)
@@ -105,6 +120,7 @@ def table_5_2(ctx: RunContext) -> dict[str, float]:
     rng = ctx.rng(SESSIONS)
     chosen = rng.permutation(len(everything))[: max(1, round(protocol.train_ratio * len(everything)))]
     planner = train_planner(ctx, spec, [everything[j] for j in chosen], prefix="planner")
+    cell, view = robot_cell(ctx, render=protocol.video) if with_robot else (None, None)
     rows, results = [], {"normal": [], "fast": []}
     total = protocol.sessions + protocol.fast_sessions
     for i in tqdm(range(total), desc=f"sessions {spec.cell}", unit="session"):
@@ -113,34 +129,96 @@ def table_5_2(ctx: RunContext) -> dict[str, float]:
         seed = int(rng.integers(2**31))
         clip, steps = render_session(spec, spec.video, goal, seed, protocol.p_screw, fast)
         annotated = [] if i == 0 else None
-        result = run_session(detector, planner, spec, clip, steps, goal, protocol.tracker_complexity, annotated)
+        if cell is not None:
+            cell.reset()
+        result = run_session(detector, planner, spec, clip, steps, goal, protocol.tracker_complexity, annotated,
+                             cell, view if i == 0 else None)
         results["fast" if fast else "normal"].append(result)
         rows.append({"session": i, "fast": fast, "goal": goal, "frames": len(clip.frames),
                      **{f"{k}_acc": np.mean(result[k]) if result[k] else np.nan for k in ("ad", "sg", "sc")},
-                     **{f"n_{k}": len(result[k]) for k in ("ad", "sg", "sc")}})
+                     **{f"n_{k}": len(result[k]) for k in ("ad", "sg", "sc")},
+                     **(robot_row(result) if cell is not None else {})})
         if annotated:
-            log_session_media(ctx, annotated, clip, spec.video.fps)
-    ctx.tracker.log_table(pd.DataFrame(rows), "table_5_2_sessions")
+            log_session_media(ctx, annotated, clip, spec.video.fps, "session_side_by_side" if view else
+                              "session_annotated")
+    ctx.tracker.log_table(pd.DataFrame(rows), "hrc_sessions" if with_robot else "table_5_2_sessions")
+    if cell is not None:
+        failures = [{"session": row["session"], "reason": reason} for row in rows for reason in row["help"]]
+        ctx.tracker.log_table(pd.DataFrame(failures, columns=["session", "reason"]), "robot_help")
+        cell.close()
     metrics = {}
     for kind, suffix in (("normal", ""), ("fast", "_fast")):
         for k in ("ad", "sg", "sc"):
             values = [v for r in results[kind] for v in r[k]]
             metrics[f"{k}_acc{suffix}"] = float(np.mean(values)) if values else float("nan")
+        if cell is not None:
+            metrics.update({f"{key}{suffix}": value for key, value in robot_metrics(results[kind]).items()})
     every = results["normal"] + results["fast"]
     metrics["tracking_ms_per_frame"] = 1e3 * float(np.median([t for r in every for t in r["tracking_s"]]))
     metrics["classify_ms"] = 1e3 * float(np.median([t for r in every for t in r["classify_s"]]))
     metrics["n_sessions"] = float(protocol.sessions)
     metrics["n_fast_sessions"] = float(protocol.fast_sessions)
+    if cell is not None:
+        latency = [t for r in every for t in r["latency_s"]]
+        moved = [p for r in every for p in r["placements"] if p.steps]
+        metrics["screw_latency_ms"] = 1e3 * float(np.median(latency)) if latency else float("nan")
+        metrics["pick_place_sim_s"] = float(np.mean([p.sim_s for p in moved])) if moved else float("nan")
+        metrics["pick_place_wall_s"] = float(np.mean([p.wall_s for p in moved])) if moved else float("nan")
     return metrics
 
 
-def log_session_media(ctx: RunContext, annotated: list[np.ndarray], clip: Clip, fps: int) -> None:
-    """The first session as an annotated MP4 and a strip of frames at the end of its first placing segments."""
+CELL_CAMERA = "cellview"  # the robot cell seen from the worker's side (hrc_lab.env.robot.cell)
+
+
+def robot_cell(ctx: RunContext, render: bool):
+    """The assembly robot cell of the run's env spec (seeded), and with ``render`` a renderer of its worker-side
+    camera at the annotated frames' height (twice the video's), or None."""
+    from hrc_lab.env import ENVS
+    from hrc_lab.tamp.video import FrameRecorder
+
+    video = ctx.cfg.env.video
+    if not render:
+        return ENVS.build(ctx.cfg.env, seed=ctx.seed), None
+    cell = ENVS.build(ctx.cfg.env, seed=ctx.seed, has_offscreen_renderer=True, camera_names=CELL_CAMERA,
+                      camera_heights=2 * video.height, camera_widths=2 * video.width)
+    return cell, FrameRecorder(cell, CELL_CAMERA, 2 * video.width, 2 * video.height, frame_skip=2)
+
+
+def robot_row(result: dict) -> dict:
+    """One session's robot columns: commands, refusals, placements, whether the goal was assembled, and every
+    reason the robot asked for help (refused or failed commands, refused human placements)."""
+    placements = result["placements"]
+    executed = [p for p in placements if p.steps]
+    return {"robot_commands": len(placements), "robot_refused": len(placements) - len(executed),
+            "robot_placed": sum(p.success for p in executed), "human_placed": sum(p.success for p in result["human"]),
+            "complete": result["complete"], "assembly": " ".join(f"{o}@p{p}" for o, p in result["assembly"]),
+            "help": [f"robot {p.part}->p{p.position}: {p.reason}" for p in placements if not p.success]
+            + [f"human {p.part}->p{p.position}: {p.reason}" for p in result["human"] if not p.success]}
+
+
+def robot_metrics(results: list[dict]) -> dict[str, float]:
+    """Table 5.2's robot columns over sessions: the placement success of executed commands, the share of
+    commands refused (nothing to pick, position taken, not allowed), and the sessions that end assembled."""
+    placements = [p for r in results for p in r["placements"]]
+    executed = [p for p in placements if p.steps]
+    nan = float("nan")
+    return {
+        "robot_placement_sr": float(np.mean([p.success for p in executed])) if executed else nan,
+        "robot_refused_rate": (len(placements) - len(executed)) / len(placements) if placements else nan,
+        "robot_commands": float(len(placements)),
+        "complete_rate": float(np.mean([r["complete"] for r in results])) if results else nan,
+    }
+
+
+def log_session_media(ctx: RunContext, annotated: list[np.ndarray], clip: Clip, fps: int, name: str) -> None:
+    """The first session as an annotated MP4 (``videos/<name>.mp4``) and a strip of frames at the end of its first
+    placing segments."""
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "session_annotated.mp4"
+        path = Path(tmp) / f"{name}.mp4"
         write_video(annotated, path, fps)
         ctx.tracker.log_artifact(path, "videos")
-    ctx.tracker.log_figure(session_strip(annotated, clip.labels), "figures/session_strip.png")
+    if len(annotated) == len(clip.frames):  # a side-by-side video has extra frames while the robot moves
+        ctx.tracker.log_figure(session_strip(annotated, clip.labels), "figures/session_strip.png")
 
 
 # -- any video -----------------------------------------------------------------------------------------------------
@@ -157,11 +235,26 @@ def annotate_video(ctx: RunContext) -> dict[str, float]:
         frames, fps = list(clip.frames), spec.video.fps
     else:
         frames, fps = read_video(Path(protocol.input))
-    loop = SemanticPlannerLoop(planner, lambda part, position: (part, position), echo=None)
-    out, state, hands = annotate_frames(detector, action_labels(spec), loop, frames, protocol.tracker_complexity)
+    cell = side = robot = None
+    if protocol.robot:  # the worker's view beside the robot cell, which executes the loop's commands
+        cell, view = robot_cell(ctx, render=True)
+        side = SideBySide(view, [])
+        robot = CellHands(cell, side)
+        loop = SemanticPlannerLoop(planner, robot.robot, echo=None, human=robot.human)
+    else:
+        loop = SemanticPlannerLoop(planner, lambda part, position: (part, position), echo=None)
+    out, state, hands = annotate_frames(detector, action_labels(spec), loop, frames, protocol.tracker_complexity,
+                                        robot, side)
+    if not hands:
+        log.warning("no hand was detected in %s: no action, no plan, no robot motion", protocol.input or "the video")
     output = Path(protocol.output)
     output.parent.mkdir(parents=True, exist_ok=True)
     write_video(out, output, fps)
     ctx.tracker.log_artifact(output, "videos")
-    return {"frames": float(len(frames)), "windows": float(len(state.windows)), "events": float(len(state.events)),
-            "tracked_fraction": hands / len(frames)}
+    metrics = {"frames": float(len(frames)), "windows": float(len(state.windows)),
+               "events": float(len(state.events)), "tracked_fraction": hands / len(frames)}
+    if robot is not None:
+        metrics.update(robot_placed=float(sum(p.success for p in robot.placements)),
+                       robot_commands=float(len(robot.placements)))
+        cell.close()
+    return metrics

@@ -195,10 +195,12 @@ class Table52Protocol(ActionClipsProtocol):
 
 @dataclass
 class AnnotateProtocol(ActionClipsProtocol):
-    """The pipeline on any video: ``input`` (a file OpenCV reads; null: a generated session) -> ``output`` MP4."""
+    """The pipeline on any video: ``input`` (a file OpenCV reads; null: a generated session) -> ``output`` MP4;
+    ``robot``: side by side with the robot cell that executes the loop's commands (and holds the worker's parts)."""
 
     input: str | None = None
     output: str = "runs/annotated.mp4"
+    robot: bool = False  # the video beside the robot cell executing the loop's commands (hrc_lab.env.robot)
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -208,10 +210,19 @@ class AnnotateProtocol(ActionClipsProtocol):
             raise ValueError(f"protocol.output must be an .mp4 path, got {self.output}")
 
 
+@dataclass
+class HRCSessionProtocol(Table52Protocol):
+    """The HRC loop with the robot cell: Table 5.2's sessions, each Semantic Control command executed by
+    PickandPlace in the cell; ``video``: the first session as a side-by-side video (worker | robot cell)."""
+
+    video: bool = True
+
+
 CH5_PERCEPTION = "hrc_lab.experiments.ch5_perception"
 PROTOCOLS.register("ch5_fig_5_6", Fig56Protocol, f"{CH5_PERCEPTION}:fig_5_6")
 PROTOCOLS.register("ch5_table_5_2", Table52Protocol, f"{CH5_PERCEPTION}:table_5_2")
 PROTOCOLS.register("ch5_annotate", AnnotateProtocol, f"{CH5_PERCEPTION}:annotate_video")
+PROTOCOLS.register("ch5_hrc_session", HRCSessionProtocol, f"{CH5_PERCEPTION}:hrc_session")
 
 
 @dataclass
@@ -581,6 +592,8 @@ ACCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
                       "perception": ACTION_DETECTORS},
     "ch5_annotate": {"env": ("assemble_to_order",), "reasoning": ("semantic_planner",),
                      "perception": ACTION_DETECTORS},
+    "ch5_hrc_session": {"env": ("assemble_to_order",), "reasoning": ("semantic_planner",),
+                        "perception": ACTION_DETECTORS},
     "collect": {"env": ROBOT_CELLS},
     "render_demo": {"env": ROBOT_CELLS},
     "ch6_table_6_1": {"env": ("clutter",), "grasp": GRASP_SOLVERS},

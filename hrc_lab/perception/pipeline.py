@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -21,6 +22,9 @@ from hrc_lab.env.assembly.spec import SCREW, parse_assembly, plan_text
 from hrc_lab.perception.hand_tracking import HandObservation, HandTracker
 from hrc_lab.perception.windows import Window, WindowStream
 from hrc_lab.reasoning.hrc_loop import LoopEvent, SemanticPlannerLoop
+
+if TYPE_CHECKING:
+    from hrc_lab.perception.robot_cell import CellHands, SideBySide
 
 
 @dataclass
@@ -99,16 +103,24 @@ def annotate(frame: np.ndarray, state: PipelineState, loop: SemanticPlannerLoop 
 
 
 def annotate_frames(detector, labels: list[str], loop: SemanticPlannerLoop | None, frames: Sequence[np.ndarray],
-                    complexity: int) -> tuple[list[np.ndarray], PipelineState, int]:
+                    complexity: int, cell: CellHands | None = None,
+                    side: SideBySide | None = None) -> tuple[list[np.ndarray], PipelineState, int]:
     """Every frame through the pipeline (MediaPipe model ``complexity``), each :func:`annotate`-d: the annotated
-    frames, the final state and the number of frames with a hand."""
+    frames, the final state and the number of frames with a hand. With the robot ``cell`` (the loop's hands) each
+    frame's start is marked for its latency; with ``side`` (writing into the returned list) every frame is the
+    worker's beside the cell, plus the robot's motion."""
     cfg = detector.cfg
     stream = WindowStream(cfg.window, cfg.crop_size, cfg.frame_size, cfg.frame_stride)
-    out, hands = [], 0
+    out, hands = (side.frames if side is not None else []), 0
     with HandTracker(model_complexity=complexity) as tracker:
         pipeline = ActionPipeline(detector, labels, tracker, stream, loop)
         for frame in tqdm(frames, desc="annotate", unit="frame"):
+            if cell is not None:
+                cell.frame_started()
             state = pipeline.push(frame)
             hands += state.observation is not None
-            out.append(annotate(frame, state, loop))
+            if side is not None:
+                side.add(annotate(frame, state, loop))
+            else:
+                out.append(annotate(frame, state, loop))
     return out, pipeline.state, hands

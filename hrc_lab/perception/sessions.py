@@ -1,6 +1,7 @@
 """Table 5.2 scoring of a whole assembly session streamed through Algorithm 3 (:mod:`hrc_lab.perception.pipeline`):
 action detection (AD) per window, semantic guidance (SG) after every human placement and semantic control (SC) per
-screw, against the session's true frame labels and steps (:func:`hrc_lab.env.assembly.video.render_session`)."""
+screw, against the session's true frame labels and steps (:func:`hrc_lab.env.assembly.video.render_session`); with
+the robot cell (:mod:`hrc_lab.env.robot.assembly_cell`), the robot's placements and the final assembly too."""
 
 from __future__ import annotations
 
@@ -18,11 +19,14 @@ from hrc_lab.env.assembly.spec import (
 from hrc_lab.env.assembly.video import Clip, SessionStep
 from hrc_lab.perception.hand_tracking import HandTracker
 from hrc_lab.perception.pipeline import ActionPipeline, annotate
+from hrc_lab.perception.robot_cell import CellHands, SideBySide
 from hrc_lab.perception.windows import WindowStream
 from hrc_lab.reasoning.hrc_loop import SemanticPlannerLoop
 
 if TYPE_CHECKING:
+    from hrc_lab.env.robot.assembly_cell import AssemblyCell
     from hrc_lab.perception.action_detector import ActionDetector
+    from hrc_lab.tamp.video import FrameRecorder
 
 
 def segments_of(labels: list[str]) -> list[tuple[str, int, int]]:
@@ -49,20 +53,33 @@ def checkpoints(clip: Clip, steps: list[SessionStep]) -> list[tuple[SessionStep,
 
 
 def run_session(detector: ActionDetector, planner, spec: AssembleToOrderSpec, clip: Clip, steps: list[SessionStep],
-                goal: int, complexity: int, annotated: list | None = None) -> dict:
+                goal: int, complexity: int, annotated: list | None = None, cell: AssemblyCell | None = None,
+                cell_view: FrameRecorder | None = None) -> dict:
     """Stream one session through Algorithm 3 and score it: AD per window (majority label of its frames), SG at
     the end of the gap after every human placement (the guidance on screen against the truth), SC per screw (the
-    first control command issued during it). The robot places what the video shows it placed, if it was asked."""
+    first control command issued during it).
+
+    Without ``cell`` the robot places what the video shows it placed, if it was asked. With the robot ``cell``
+    (reset by the caller), every human placement the loop records puts the part there, and every Semantic Control
+    command runs ``PickandPlace`` in the cell; a refused or failed one asks for help (its reason is kept) and the
+    session goes on. The result then also holds ``placements`` and ``human`` (the cell's
+    :class:`~hrc_lab.env.robot.assembly_cell.Placement` of each), ``latency_s`` (per executed command, from the
+    start of the frame whose window triggered it to the robot's first motion command), the final ``assembly`` and
+    ``complete`` (the bracket holds the goal). ``annotated`` with ``cell_view`` (a renderer of the cell): the
+    worker's annotated frame beside the cell, and the robot's motion as extra frames while the worker's is held."""
     cfg = detector.cfg
     marks = checkpoints(clip, steps)
     robot_jobs = {start: step.robot for step, start, _ in marks if step.kind == "screw"}
     frame_index = {"now": 0}
 
-    def robot(part: str, position: int):
+    def video_robot(part: str, position: int):
         due = [s for s in robot_jobs if s <= frame_index["now"] and robot_jobs[s] is not None]
         return robot_jobs.pop(due[-1]) if due else None
 
-    loop = SemanticPlannerLoop(planner, robot, echo=None)
+    side = SideBySide(cell_view, annotated) if cell_view is not None and annotated is not None else None
+    hands = CellHands(cell, side) if cell is not None else None
+    loop = SemanticPlannerLoop(planner, hands.robot if hands else video_robot, echo=None,
+                               human=hands.human if hands else None)
     stream = WindowStream(cfg.window, cfg.crop_size, cfg.frame_size, cfg.frame_stride)
     with HandTracker(model_complexity=complexity) as tracker:
         pipeline = ActionPipeline(detector, action_labels(spec), tracker, stream, loop)
@@ -70,10 +87,14 @@ def run_session(detector: ActionDetector, planner, spec: AssembleToOrderSpec, cl
         due = {end: step for step, _, end in marks}
         for k, frame in enumerate(clip.frames):
             frame_index["now"] = k
+            if hands is not None:
+                hands.frame_started()
             state = pipeline.push(frame)
             if k in due:
                 shown[k] = list(loop.pairs)
-            if annotated is not None:
+            if side is not None:
+                side.add(annotate(frame, state, loop))
+            elif annotated is not None:
                 annotated.append(annotate(frame, state, loop))
     truth_assembled: set[int] = set()
     sg, sc = [], []
@@ -95,4 +116,6 @@ def run_session(detector: ActionDetector, planner, spec: AssembleToOrderSpec, cl
         labels = [x for x in clip.labels[window.start : window.end] if x != "none"]
         if labels:
             ad.append(window.label == max(set(labels), key=labels.count))
-    return {"ad": ad, "sg": sg, "sc": sc, "tracking_s": state.tracking_s, "classify_s": state.classify_s}
+    result = {"ad": ad, "sg": sg, "sc": sc, "tracking_s": state.tracking_s, "classify_s": state.classify_s}
+    return {**result, **hands.result(spec.goal(goal))} if hands is not None else result
+

@@ -6,6 +6,9 @@ issue feeds it the same labels from video.
 - fetch and transport are intermediate motions and change nothing.
 - screw hands the next part to the robot: the planner's Semantic Control [o_next, p, ...] becomes a
   ``PickandPlace(o_next, p)`` call, and whatever the robot reports it placed is added to the graph.
+
+``human`` (optional) hears of every human placement the loop records, e.g. the robot cell, which puts the part
+there (:meth:`hrc_lab.env.robot.assembly_cell.AssemblyCell.human_place`).
 """
 
 from __future__ import annotations
@@ -43,10 +46,12 @@ class SemanticPlannerLoop:
         planner: SemanticPlanner,
         robot: PickAndPlace,
         echo: Callable[[str], None] | None = print,
+        human: Callable[[str, int], object] | None = None,
     ) -> None:
         self.planner = planner
         self.spec: AssembleToOrderSpec = planner.spec
         self.robot = robot
+        self.human = human
         self.echo = echo
         self.pairs: list[tuple[str, int]] = []
 
@@ -63,6 +68,8 @@ class SemanticPlannerLoop:
         assembly = parse_assembly(label)
         if assembly is not None:
             self.pairs.append(assembly)
+            if self.human is not None:
+                self.human(*assembly)
             event = LoopEvent(label, self.planner.plan([self.pairs])[0])
         elif label == SCREW:
             plan = self.planner.plan([self.pairs])[0]

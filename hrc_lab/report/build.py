@@ -29,6 +29,7 @@ COMMANDS = {
     "table_5_2_planner": "hrc-lab experiment=ch5/table_5_2_planner hydra/launcher=joblib",
     "fig_5_6": "hrc-lab experiment=ch5/fig_5_6 hydra/launcher=joblib",
     "table_5_2": "hrc-lab experiment=ch5/table_5_2 hydra/launcher=joblib",
+    "hrc_session": "hrc-lab experiment=ch5/hrc_session hydra/launcher=joblib",
     "table_6_1": "hrc-lab experiment=ch6/table_6_1 hydra/launcher=joblib",
     "table_6_2_single": "hrc-lab experiment=ch6/table_6_2_single hydra/launcher=joblib",
     "collect_ch4": "hrc-lab experiment=data/collect_ch4 hydra/launcher=joblib",

@@ -147,3 +147,19 @@ def spread(frame: pd.DataFrame, metric: str) -> tuple[float, float]:
     """Mean and standard deviation (ddof=0) of a metric over the rows of ``frame``; NaN when it has no value."""
     values = frame[metric].dropna() if metric in frame else pd.Series(dtype=float)
     return (float(values.mean()), float(values.std(ddof=0))) if len(values) else (float("nan"), float("nan"))
+
+
+def run_tables(runs: pd.DataFrame, name: str) -> pd.DataFrame:
+    """The table every run logged as ``tables/<name>.csv`` (``RunTracker.log_table``), concatenated with a
+    ``run_id`` column; runs that logged none are left out."""
+    import tempfile
+
+    frames = []
+    for run_id, uri in zip(runs.run_id, runs[f"{PARAM_PREFIX}logger.tracking_uri"]):
+        client = MlflowClient(resolve_tracking_uri(uri))
+        if not any(a.path == f"tables/{name}.csv" for a in client.list_artifacts(run_id, "tables")):
+            continue
+        with tempfile.TemporaryDirectory() as tmp:
+            path = client.download_artifacts(run_id, f"tables/{name}.csv", tmp)
+            frames.append(pd.read_csv(path).assign(run_id=run_id))
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=["run_id"])

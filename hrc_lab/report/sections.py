@@ -94,6 +94,14 @@ TOPICS = {
         "scratch on CPU (no pretrained VGG16).",
         [("ch5/fig_5_6", "fig_5_6"), ("ch5/table_5_2", "table_5_2")],
     ),
+    "ch5_hrc": (
+        "Ch.5 human-robot collaboration with the robot in the loop (Algorithm 3's PickandPlace)",
+        "The worker is a generated video (`hrc_lab/env/assembly/video.py`), not a person on a RealSense camera; the "
+        "robot is a simulated UR5e with a suction cup in robosuite (`hrc_lab/env/robot/assembly_cell.py`), not the "
+        "thesis' UR10 at a real bench; part shapes are cuboids of three sizes. Every network trains from scratch "
+        "on CPU.",
+        [("ch5/hrc_session", "hrc_session")],
+    ),
     "ch6_grasp": (
         "Ch.6 iterative visual grasping: graspability and grasp solutions from detector features",
         "Scenes are rendered in MuJoCo (parts a, b, c dropped with physics, top-down camera; "
@@ -125,6 +133,7 @@ def load_sections() -> None:
         ch4_motion,
         ch4_reasoning,
         ch4_tamp,
+        ch5_hrc,
         ch5_perception,
         ch5_planner,
         ch6_grasp,

@@ -6,10 +6,16 @@ import dataclasses
 
 import numpy as np
 
+from hrc_lab.env.robot.assembly_cell import AssemblyCell
 from hrc_lab.env.robot.cell import HRCCell
 from hrc_lab.env.robot.correction_cell import ErrorCorrection
 from hrc_lab.env.robot.package_cell import PackageToOrder
-from hrc_lab.env.robot.settings import ErrorCorrectionConfig, PackageToOrderConfig, SimSettings
+from hrc_lab.env.robot.settings import (
+    AssembleToOrderConfig,
+    ErrorCorrectionConfig,
+    PackageToOrderConfig,
+    SimSettings,
+)
 from hrc_lab.env.robot.spec import PackageToOrderSpec
 
 
@@ -25,7 +31,8 @@ def cell_kwargs(sim: SimSettings) -> dict:
     }
 
 
-def make_env(cfg: PackageToOrderConfig | ErrorCorrectionConfig, seed: int | None = None, **render) -> HRCCell:
+def make_env(cfg: PackageToOrderConfig | ErrorCorrectionConfig | AssembleToOrderConfig, seed: int | None = None,
+             **render) -> HRCCell:
     """The cell an ``env`` config describes (``ENVS.build(cfg, seed=...)``); ``render`` takes robosuite's
     off-screen camera arguments."""
     kwargs = {**cell_kwargs(cfg.sim), "seed": seed, **render}
@@ -35,4 +42,7 @@ def make_env(cfg: PackageToOrderConfig | ErrorCorrectionConfig, seed: int | None
         return PackageToOrder(spec, case=cfg.sim.case, n_missing=cfg.sim.n_missing, **kwargs)
     if isinstance(cfg, ErrorCorrectionConfig):
         return ErrorCorrection(task=cfg.task, case=cfg.sim.case, **kwargs)
-    raise TypeError(f"env '{type(cfg).__name__}' has no robot cell; use package_to_order or error_correction")
+    if isinstance(cfg, AssembleToOrderConfig):
+        return AssemblyCell(cfg, **kwargs)
+    raise TypeError(f"env '{type(cfg).__name__}' has no robot cell; use package_to_order, error_correction or "
+                    "assemble_to_order")

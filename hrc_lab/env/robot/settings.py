@@ -1,14 +1,16 @@
 """Config schemas of the robosuite cells (no simulator import: validating a config stays fast).
 
 ``conf/env/package_to_order*.yaml`` validate to :class:`PackageToOrderConfig` (the task spec the reasoning module
-uses, plus a ``sim`` block for the robot cell) and ``conf/env/error_correction*.yaml`` to
-:class:`ErrorCorrectionConfig`.
+uses, plus a ``sim`` block for the robot cell), ``conf/env/error_correction*.yaml`` to
+:class:`ErrorCorrectionConfig` and ``conf/env/ato*.yaml`` to :class:`AssembleToOrderConfig` (the Ch.5 spec plus
+its robot cell).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from hrc_lab.env.assembly.spec import AssembleToOrderSpec
 from hrc_lab.env.robot.spec import PackageToOrderSpec
 
 EC_TASKS = ("one_object", "two_object", "place", "stack")
@@ -93,3 +95,62 @@ class ErrorCorrectionConfig:
     @property
     def scenario(self) -> str:
         return self.cell
+
+
+@dataclass
+class AssemblyCellLayout:
+    """The Ch.5 robot cell (Sec. 5.3, Fig. 5.8 with a UR5e; :mod:`hrc_lab.env.robot.assembly_cell`), in table
+    coordinates (m, the robot's base at the table's -x edge). Each part type has a bin, its parts in a row along x
+    from ``bins[type]`` at ``bin_spacing``; the bracket's positions p1..p6 lie along y from ``bracket_p1`` (the
+    worker's right, +y) at ``position_spacing`` towards -y; ``part_half_sizes`` per type (x, y, z): the types differ
+    in footprint and height, and every part has a flat top face for the suction cup."""
+
+    part_half_sizes: dict[str, list[float]] = field(default_factory=lambda: {
+        "o1": [0.02, 0.02, 0.02], "o2": [0.03, 0.02, 0.025], "o3": [0.02, 0.02, 0.035]})
+    bins: dict[str, list[float]] = field(default_factory=lambda: {
+        "o1": [-0.16, -0.30], "o2": [0.08, -0.30], "o3": [-0.16, -0.20]})
+    bin_spacing: float = 0.08
+    bin_jitter: float = 0.005  # uniform x-y jitter of each part in its bin slot, from the seed
+    bracket_p1: list[float] = field(default_factory=lambda: [0.06, 0.25])
+    position_spacing: float = 0.07
+    bracket_thickness: float = 0.01
+    place_tolerance: float = 0.02  # a placed part rests within this x-y distance of its position, m
+
+    def __post_init__(self) -> None:
+        for part, half in self.part_half_sizes.items():
+            if len(half) != 3 or min(half) < 0.015:
+                raise ValueError(f"env.robot.part_half_sizes.{part} must be 3 half sizes >= 0.015 m (the cup's "
+                                 f"lip needs a 3 cm top face), got {half}")
+        for part, xy in self.bins.items():
+            if len(xy) != 2:
+                raise ValueError(f"env.robot.bins.{part} must be [x, y], got {xy}")
+        if len(self.bracket_p1) != 2:
+            raise ValueError(f"env.robot.bracket_p1 must be [x, y], got {self.bracket_p1}")
+        widest = 2 * max(h[1] for h in self.part_half_sizes.values())
+        if self.position_spacing <= widest + 0.01:
+            raise ValueError(f"env.robot.position_spacing={self.position_spacing} m leaves under 1 cm between parts "
+                             f"{widest} m wide")
+        longest = 2 * max(h[0] for h in self.part_half_sizes.values()) + 2 * self.bin_jitter
+        if self.bin_spacing <= longest + 0.01:
+            raise ValueError(f"env.robot.bin_spacing={self.bin_spacing} m leaves under 1 cm between parts in a bin")
+        for key in ("bin_jitter",):
+            if getattr(self, key) < 0:
+                raise ValueError(f"env.robot.{key} must be >= 0, got {getattr(self, key)}")
+        for key in ("bracket_thickness", "place_tolerance"):
+            if not getattr(self, key) > 0:
+                raise ValueError(f"env.robot.{key} must be > 0, got {getattr(self, key)}")
+
+
+@dataclass
+class AssembleToOrderConfig(AssembleToOrderSpec):
+    """The assemble-to-order spec the semantic planner and the videos use, plus the robot cell that executes
+    Algorithm 3's PickandPlace (``robot``: layout and part shapes; ``sim``: the robosuite cell's settings)."""
+
+    robot: AssemblyCellLayout = field(default_factory=AssemblyCellLayout)
+    sim: SimSettings = field(default_factory=lambda: SimSettings(horizon=5000))  # a whole session's control steps
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for part in self.product:
+            if part not in self.robot.part_half_sizes or part not in self.robot.bins:
+                raise ValueError(f"env.robot: part type {part} needs part_half_sizes.{part} and bins.{part}")

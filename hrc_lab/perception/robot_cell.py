@@ -1,0 +1,95 @@
+"""The robot cell in Algorithm 3's video loop (thesis 5.2.3, Figs. 5.8-5.10): the cell as the loop's two hands,
+and the side-by-side video of the worker and the cell.
+
+:class:`CellHands` gives :class:`~hrc_lab.reasoning.hrc_loop.SemanticPlannerLoop` its ``robot`` (PickandPlace in the
+:class:`~hrc_lab.env.robot.assembly_cell.AssemblyCell`; a refused or failed command asks for help and returns
+nothing placed) and its ``human`` (the worker's recorded placement appears in the cell), and keeps what happened.
+:class:`SideBySide` composes the worker's annotated frame with the rendered cell.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+
+if TYPE_CHECKING:
+    from hrc_lab.env.robot.assembly_cell import AssemblyCell, Placement
+    from hrc_lab.tamp.video import FrameRecorder
+
+
+class SideBySide:
+    """The side-by-side video: the worker's annotated frame | the robot cell (``view``, a
+    :class:`~hrc_lab.tamp.video.FrameRecorder` used for its ``frame()``), the cell re-rendered only when it
+    changed; while the robot moves, every ``view.frame_skip``-th control step adds a frame with the worker's last
+    annotated frame held."""
+
+    def __init__(self, view: FrameRecorder, frames: list) -> None:
+        self.view, self.frames = view, frames
+        self.last: np.ndarray | None = None  # the worker's last annotated frame
+        self.caption = ""
+        self.cell_image = view.frame()
+
+    def refresh(self) -> None:
+        self.view.text = self.caption
+        self.cell_image = self.view.frame()
+
+    def add(self, worker: np.ndarray) -> None:
+        self.last = worker
+        self.frames.append(self.compose(worker, self.cell_image))
+
+    def robot_step(self, step: int) -> None:
+        if step % self.view.frame_skip == 0 and self.last is not None:
+            self.view.text = "robot: moving"
+            self.frames.append(self.compose(self.last, self.view.frame()))
+
+    @staticmethod
+    def compose(worker: np.ndarray, cell: np.ndarray) -> np.ndarray:
+        if cell.shape[0] != worker.shape[0]:
+            scale = worker.shape[0] / cell.shape[0]
+            cell = cv2.resize(cell, (round(cell.shape[1] * scale), worker.shape[0]), interpolation=cv2.INTER_AREA)
+        return np.hstack([worker, cell])
+
+
+class CellHands:
+    """The cell as the loop's robot and human (module docstring). Call :meth:`frame_started` before each frame
+    is pushed through the pipeline: a command's latency runs from there to the robot's first motion command."""
+
+    def __init__(self, cell: AssemblyCell, side: SideBySide | None = None) -> None:
+        self.cell, self.side = cell, side
+        self.placements: list[Placement] = []
+        self.human_placements: list[Placement] = []
+        self.latency_s: list[float] = []
+        self._frame_t = time.perf_counter()
+
+    def frame_started(self) -> None:
+        self._frame_t = time.perf_counter()
+
+    def robot(self, part: str, position: int) -> tuple[str, int] | None:
+        """PickandPlace(part, position): what the robot placed, or None (it asked for help)."""
+        observer = self.side.robot_step if self.side is not None else None
+        placement = self.cell.pick_and_place(part, position, observer=observer)
+        self.placements.append(placement)
+        if placement.steps:  # the robot moved
+            self.latency_s.append(placement.started_at - self._frame_t)
+        if self.side is not None:
+            self.side.caption = f"robot: PickandPlace({part}, p{position}) " + (
+                "done" if placement.success else f"help: {placement.reason}")
+            self.side.refresh()
+        return (part, position) if placement.success else None
+
+    def human(self, part: str, position: int) -> None:
+        """The worker placed ``part`` on ``position`` (as the loop recorded it)."""
+        self.human_placements.append(self.cell.human_place(part, position))
+        if self.side is not None:
+            self.side.refresh()
+
+    def result(self, goal: list[str]) -> dict:
+        """What happened: placements, human placements, latencies, the final assembly and whether it is ``goal``
+        (the part type at p1, p2, ...)."""
+        target = [(part, p) for p, part in enumerate(goal, start=1)]
+        assembly = self.cell.assembly()
+        return {"placements": self.placements, "human": self.human_placements, "latency_s": self.latency_s,
+                "assembly": assembly, "complete": assembly == target}
