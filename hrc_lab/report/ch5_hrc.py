@@ -44,6 +44,13 @@ def hrc_session(runs: pd.DataFrame) -> Section:
     normal, records = per_cell(runs, "", with_thesis=True)
     fast, fast_records = per_cell(runs, "_fast", with_thesis=False)
     help_table = run_tables(runs, "robot_help")
+    sessions = run_tables(runs, "hrc_sessions")
+    right = (sessions.sg_acc.fillna(1) == 1) & (sessions.sc_acc.fillna(1) == 1)  # NaN: the session had no such step
+    cause = (f"Of the {int(right.sum())} sessions whose Semantic Guidance and Semantic Control were right at every "
+             f"step, {int(sessions.complete[right].sum())} ended with the goal assembled; of the {int((~right).sum())} "
+             f"with a planner or detection error, {int(sessions.complete[~right].sum())} did. A wrong command or a "
+             "mis-detected human placement puts a part where the goal wants another, and the position is then "
+             "taken when the right part comes (the table below)." if len(sessions) else "")
     reasons = (help_table.reason.str.replace(r"p\d", "p<k>", regex=True).str.replace(r"\d+\.\d cm", "<x> cm",
                                                                                      regex=True)
                .str.replace(r"(robot|human) o\d->p<k>", r"\1 o<i>->p<k>", regex=True).value_counts()
@@ -71,7 +78,11 @@ def hrc_session(runs: pd.DataFrame) -> Section:
         "",
         pd.DataFrame(fast).to_markdown(index=False),
         "",
-        "Why the robot asked for help (all sessions; positions and distances generalised):",
+        cause,
+        "",
+        "Placements the cell refused or that failed (all sessions; `robot`: a command the robot could not carry "
+        "out, so it asked for help; `human`: a placement the loop recorded that the cell could not hold, e.g. a "
+        "position a wrong earlier step had filled; part types and positions generalised):",
         "",
         (reasons.rename_axis("reason").reset_index(name="count").to_markdown(index=False) if len(reasons)
          else "(never)"),
