@@ -9,6 +9,7 @@ nothing placed) and its ``human`` (the worker's recorded placement appears in th
 
 from __future__ import annotations
 
+import logging
 import time
 from typing import TYPE_CHECKING
 
@@ -18,6 +19,8 @@ import numpy as np
 if TYPE_CHECKING:
     from hrc_lab.env.robot.assembly_cell import AssemblyCell, Placement
     from hrc_lab.tamp.video import FrameRecorder
+
+log = logging.getLogger("hrc_lab")
 
 
 class SideBySide:
@@ -78,11 +81,16 @@ class CellHands:
             self.side.caption = f"robot: PickandPlace({part}, p{position}) " + (
                 "done" if placement.success else f"help: {placement.reason}")
             self.side.refresh()
+        if not placement.success:
+            log.info("robot asks for help: PickandPlace(%s, p%d): %s", part, position, placement.reason)
         return (part, position) if placement.success else None
 
     def human(self, part: str, position: int) -> None:
         """The worker placed ``part`` on ``position`` (as the loop recorded it)."""
-        self.human_placements.append(self.cell.human_place(part, position))
+        placement = self.cell.human_place(part, position)
+        if not placement.success:
+            log.info("the cell cannot hold the worker's %s at p%d: %s", part, position, placement.reason)
+        self.human_placements.append(placement)
         if self.side is not None:
             self.side.refresh()
 
