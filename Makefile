@@ -1,5 +1,5 @@
 # Shortcuts; each target is one documented command (see README.md).
-.PHONY: install quick test test-all reproduce reproduce-ch4 report-ch4 reproduce-ch5 reproduce-ch5-perception reproduce-ch6 reproduce-data mlflow-ui
+.PHONY: install quick test test-all reproduce reproduce-ch4 report-ch4 reproduce-ch5 reproduce-ch5-perception reproduce-ch5-hrc reproduce-ch6 reproduce-data mlflow-ui
 
 install:
 	bash scripts/install.sh
@@ -28,6 +28,9 @@ reproduce-ch5: install  ## Fig. 5.7 and the planner columns of Table 5.2, then t
 
 reproduce-ch5-perception: install  ## Fig. 5.5/5.6 and Table 5.2 end to end from generated videos, then the report
 	.venv/bin/hrc-lab-reproduce ch5_perception $(ARGS)
+
+reproduce-ch5-hrc: install  ## the HRC loop with the robot cell (Table 5.2 extended, side-by-side video), then the report
+	.venv/bin/hrc-lab-reproduce ch5_hrc $(ARGS)
 
 reproduce-ch6: install  ## Table 6.1 and the single-image row of Table 6.2, then the committed report
 	.venv/bin/hrc-lab-reproduce ch6 $(ARGS)
