@@ -1,6 +1,7 @@
 """Ch.5 perception protocols (Sec. 5.4.1, 5.4.3): Fig. 5.5 / 5.6 (the action detector and its baselines on
 generated action clips), Table 5.2 end to end (generated assembly sessions streamed through MediaPipe tracking ->
-action detector -> semantic planner, Algorithm 3) and the annotation of any video with the same pipeline.
+action detector -> semantic planner, Algorithm 3), the same sessions with the robot cell executing the loop's
+commands (5.2.3; :mod:`hrc_lab.perception.robot_cell`) and the annotation of any video with the same pipeline.
 
 The clip set depends on ``protocol.data_seed``, the video spec and the window sizes only; it is tracked once and
 cached under ``<paths.runs_dir>/cache/ch5`` (file lock), so every method and seed of a sweep reads the same
