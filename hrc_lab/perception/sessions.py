@@ -118,4 +118,3 @@ def run_session(detector: ActionDetector, planner, spec: AssembleToOrderSpec, cl
             ad.append(window.label == max(set(labels), key=labels.count))
     result = {"ad": ad, "sg": sg, "sc": sc, "tracking_s": state.tracking_s, "classify_s": state.classify_s}
     return {**result, **hands.result(spec.goal(goal))} if hands is not None else result
-
