@@ -28,7 +28,7 @@ def per_cell(runs: pd.DataFrame, suffix: str, with_thesis: bool) -> tuple[list[d
             row[title] = fmt(mean, std, 1) + (f" ({ref[0]} ± {ref[1]})" if with_thesis else "")
             records.append({"goals": goals, "sessions": suffix or "normal", "metric": metric, "mean": mean,
                             "std": std})
-        row["robot commands"] = int(part[f"robot_commands{suffix}"].sum())
+        row["robot commands"] = int(part.get(f"robot_commands{suffix}", pd.Series(dtype=float)).sum())
         for metric, title in (("robot_refused_rate", "refused %"), ("robot_placement_sr", "placed %"),
                               ("complete_rate", "assembled %")):
             mean, std = (100 * v for v in spread(part, metric + suffix))
@@ -42,7 +42,7 @@ def per_cell(runs: pd.DataFrame, suffix: str, with_thesis: bool) -> tuple[list[d
 @register_section("hrc_session")
 def hrc_session(runs: pd.DataFrame) -> Section:
     normal, records = per_cell(runs, "", with_thesis=True)
-    fast, fast_records = per_cell(runs, "_fast", with_thesis=False)
+    fast, fast_records = per_cell(runs, "_fast", with_thesis=False) if runs.n_fast_sessions.sum() else ([], [])
     help_table = run_tables(runs, "robot_help")
     sessions = run_tables(runs, "hrc_sessions")
     right = (sessions.sg_acc.fillna(1) == 1) & (sessions.sc_acc.fillna(1) == 1)  # NaN: the session had no such step
@@ -77,7 +77,7 @@ def hrc_session(runs: pd.DataFrame) -> Section:
         "",
         "Fast sessions (every action about twice as fast, motion-blurred; the thesis' stated failure case):",
         "",
-        pd.DataFrame(fast).to_markdown(index=False),
+        pd.DataFrame(fast).to_markdown(index=False) if fast else "(none in these runs)",
         "",
         cause,
         "",

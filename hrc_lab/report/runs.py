@@ -151,10 +151,13 @@ def spread(frame: pd.DataFrame, metric: str) -> tuple[float, float]:
 
 def run_tables(runs: pd.DataFrame, name: str) -> pd.DataFrame:
     """The table every run logged as ``tables/<name>.csv`` (``RunTracker.log_table``), concatenated with a
-    ``run_id`` column; runs that logged none are left out."""
+    ``run_id`` column; runs that logged none are left out (all of them when the runs' tracking URI is not
+    logged)."""
     import tempfile
 
     frames = []
+    if runs.empty or f"{PARAM_PREFIX}logger.tracking_uri" not in runs:
+        return pd.DataFrame(columns=["run_id"])
     for run_id, uri in zip(runs.run_id, runs[f"{PARAM_PREFIX}logger.tracking_uri"]):
         client = MlflowClient(resolve_tracking_uri(uri))
         if not any(a.path == f"tables/{name}.csv" for a in client.list_artifacts(run_id, "tables")):
