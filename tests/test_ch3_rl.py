@@ -57,6 +57,19 @@ def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_p
     assert list((tmp_path / "report" / "ch3_rl").glob("fig_3_13_v*.png"))
 
 
+def test_fig_3_9_measures_the_distance_to_the_planners_subgoal(run_job):
+    """Fig. 3.9's goal-state positional difference is |sub-goal - end effector| in both arms (the unguided arm's
+    planner only tracks its sub-goals), one row per control step that still has its state (not the reset after
+    the last), and the task-goal distance beside it."""
+    job = run_job("experiment=ch3/fig_3_9", TINY[0], "env=error_correction_place", *TINY[2:6], "protocol.demos=2",
+                  "protocol.episodes=2", "rl.steps_per_subtask=8")
+    metrics = job.metrics
+    for arm in ("guided", "unguided"):
+        assert 0 < metrics[f"mean_distance_{arm}"] < 1 and 0 < metrics[f"mean_goal_distance_{arm}"] < 1
+        steps = [m.step for m in job.client.get_metric_history(job.run.info.run_id, f"distance_{arm}")]
+        assert steps == list(range(1, 8))  # steps 1..7 of 8: the 8th step's state is gone with the reset
+
+
 @pytest.mark.slow
 def test_a_killed_fig_3_13_run_resumes_from_its_agent_checkpoint(run_job):
     """A run killed after its checkpoints: resume_from loads the saved agent (and replay buffer), copies the
