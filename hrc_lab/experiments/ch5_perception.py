@@ -168,13 +168,11 @@ def assembly_sessions(ctx: RunContext, with_robot: bool) -> dict[str, float]:
     return metrics
 
 
-CELL_CAMERA = "cellview"  # the robot cell seen from the worker's side (hrc_lab.env.robot.cell)
-
-
 def robot_cell(ctx: RunContext, render: bool):
     """The assembly robot cell of the run's env spec (seeded), and with ``render`` a renderer of its worker-side
     camera at the annotated frames' height (twice the video's), or None."""
     from hrc_lab.env import ENVS
+    from hrc_lab.env.robot.settings import CELL_CAMERA
     from hrc_lab.tamp.video import FrameRecorder
 
     video = ctx.cfg.env.video

@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
+from hrc_lab.env.robot.settings import CELL_CAMERA
 from hrc_lab.motion.configs import PLANNER_INPUTS, STAGE_LABELS, STAGE_STARTS
 from hrc_lab.registry import Registry
 
@@ -254,7 +255,7 @@ class CollectProtocol:
 class RenderDemoProtocol:
     """One expert episode rendered off-screen (MUJOCO_GL=egl by default, or osmesa) to MP4."""
 
-    camera: str = "cellview"  # or robosuite's frontview, birdview, agentview, sideview
+    camera: str = CELL_CAMERA  # or robosuite's frontview, birdview, agentview, sideview
     width: int = 480
     height: int = 360
     frame_skip: int = 2  # render every k-th control step
@@ -323,7 +324,7 @@ class Table43Protocol:
     # lowest product into slot k, as Table 4.2 after 4.4.2.1), or "all" (every permutation)
     motion_demos: str = "fixed"
     video_cells: list[str] = field(default_factory=lambda: ["3of5"])
-    camera: str = "cellview"
+    camera: str = CELL_CAMERA
     video_width: int = 320
     video_height: int = 240
     frame_skip: int = 2

@@ -149,6 +149,15 @@ def spread(frame: pd.DataFrame, metric: str) -> tuple[float, float]:
     return (float(values.mean()), float(values.std(ddof=0))) if len(values) else (float("nan"), float("nan"))
 
 
+def run_clients(runs: pd.DataFrame):
+    """(run_id, MlflowClient of the store the run logged to) for every run; none when the runs' tracking URI is not
+    logged."""
+    if runs.empty or f"{PARAM_PREFIX}logger.tracking_uri" not in runs:
+        return
+    for run_id, uri in zip(runs.run_id, runs[f"{PARAM_PREFIX}logger.tracking_uri"]):
+        yield run_id, MlflowClient(resolve_tracking_uri(uri))
+
+
 def run_tables(runs: pd.DataFrame, name: str) -> pd.DataFrame:
     """The table every run logged as ``tables/<name>.csv`` (``RunTracker.log_table``), concatenated with a
     ``run_id`` column; runs that logged none are left out (all of them when the runs' tracking URI is not
@@ -156,10 +165,7 @@ def run_tables(runs: pd.DataFrame, name: str) -> pd.DataFrame:
     import tempfile
 
     frames = []
-    if runs.empty or f"{PARAM_PREFIX}logger.tracking_uri" not in runs:
-        return pd.DataFrame(columns=["run_id"])
-    for run_id, uri in zip(runs.run_id, runs[f"{PARAM_PREFIX}logger.tracking_uri"]):
-        client = MlflowClient(resolve_tracking_uri(uri))
+    for run_id, client in run_clients(runs):
         if not any(a.path == f"tables/{name}.csv" for a in client.list_artifacts(run_id, "tables")):
             continue
         with tempfile.TemporaryDirectory() as tmp:

@@ -196,7 +196,7 @@ class AssemblyCell(HRCCell):
         start, started, collisions = time.perf_counter(), float("nan"), len(self.collisions)
         index = self.in_bin(part)[0]
         target = self.position_pose(position, part)
-        self._plan, self.goals = [index], self.goals.copy()
+        self._plan = [index]
         self.goals[index] = target
         expert, steps, reason = ScriptedExpert(self), 0, ""
         while (step := expert.act()) is not None:

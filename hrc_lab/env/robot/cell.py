@@ -44,6 +44,7 @@ from robosuite.models.objects import BoxObject  # noqa: E402
 from robosuite.models.tasks import ManipulationTask  # noqa: E402
 from robosuite.utils.observables import Observable, sensor  # noqa: E402
 
+from hrc_lab.env.robot.settings import CELL_CAMERA  # noqa: E402
 from hrc_lab.env.robot.suction import Suction, SuctionCup, weld_elements  # noqa: E402
 
 PICK, PLACE = 0, 1
@@ -171,7 +172,7 @@ class HRCCell(ManipulationEnv):
         arena = TableArena(table_full_size=self.table_full_size, table_offset=self.table_offset)
         arena.set_origin([0, 0, 0])
         # a camera facing the robot over the table (pending area left, box right), for videos
-        arena.worldbody.append(ET.Element("camera", name="cellview", pos="1.35 0 1.85", xyaxes="0 1 0 -0.506 0 0.863"))
+        arena.worldbody.append(ET.Element("camera", name=CELL_CAMERA, pos="1.35 0 1.85", xyaxes="0 1 0 -0.506 0 0.863"))
         self._add_fixtures(arena)
         self.objects = [
             BoxObject(name=o.name, size=o.half_size, rgba=o.rgba, density=500, friction=(1.0, 0.005, 0.0001))

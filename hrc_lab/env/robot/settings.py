@@ -14,6 +14,7 @@ from hrc_lab.env.assembly.spec import AssembleToOrderSpec
 from hrc_lab.env.robot.spec import PackageToOrderSpec
 
 EC_TASKS = ("one_object", "two_object", "place", "stack")
+CELL_CAMERA = "cellview"  # every robot cell's camera facing the robot over the table (the worker's side)
 
 
 @dataclass(frozen=True)
