@@ -29,8 +29,16 @@ def test_chain_graph_has_one_node_per_product_and_next_neighbour_edges():
     assert graph.x[:, 3].tolist() == [0, 1, 0, 1, 1]  # feature I: selected or not
     expected = (obs.positions[2] - [0, 0, SPEC.table_z]) * POSITION_SCALE
     np.testing.assert_allclose(graph.x[2, :3].numpy(), expected, rtol=1e-6)
-    both = chain_graph(obs, SPEC, bidirectional=True)
+    both = chain_graph(obs, SPEC, "bidirectional")
     assert both.edge_index.shape == (2, 8)
+
+
+def test_all_earlier_edges_link_every_node_to_every_later_one():
+    """The other reading of Sec. 4.2.1's E = {e_ij}, i = 1..m-1, j = 2..m: node i feeds every node j > i."""
+    edges = chain_graph(observations()[0], SPEC, "all_earlier").edge_index
+    assert sorted(map(tuple, edges.T.tolist())) == [(i, j) for i in range(5) for j in range(i + 1, 5)]
+    with pytest.raises(ValueError, match="edges"):
+        chain_graph(observations()[0], SPEC, "ring")
 
 
 def test_chain_graph_drops_missing_products():

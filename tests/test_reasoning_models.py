@@ -1,10 +1,12 @@
+import math
+
 import numpy as np
 import pytest
 import torch
 from torch_geometric.loader import DataLoader
 
 from hrc_lab.env.robot.spec import PackageToOrderSpec, goal_configurations, sample_episode, stage_observations
-from hrc_lab.experiments.ch4_reasoning import evaluate
+from hrc_lab.experiments.ch4_reasoning import case1_split, evaluate, pick_errors
 from hrc_lab.reasoning import REASONERS
 from hrc_lab.reasoning.module import ReasoningModule
 
@@ -50,6 +52,35 @@ def test_joint_loss_falls_on_a_tiny_batch(method):
     assert losses[-1] < 0.5 * losses[0]
 
 
+VARIANTS = [{"edges": "bidirectional"}, {"edges": "all_earlier"}, {"readout": "node_scores"},
+            {"edges": "all_earlier", "readout": "node_scores"}]
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_ours_variants_output_shapes(variant):
+    reasoner = REASONERS.build(REASONERS.validate({"name": "ours", **variant}), spec=SPEC)
+    batch = next(iter(DataLoader([reasoner.encode(o) for o in observations(demos(3))], batch_size=24)))
+    logits_o, logits_g = reasoner.network(batch, teacher_forcing=False)
+    assert logits_o.shape == (24, SPEC.n_objects + 1) and logits_g.shape == (24, SPEC.slots + 1)
+
+
+def test_node_scores_never_point_at_an_absent_product():
+    reasoner = REASONERS.build(REASONERS.validate({"name": "ours", "readout": "node_scores"}), spec=SPEC)
+    rng = np.random.default_rng(0)
+    episodes = [sample_episode(SPEC, c, rng, n_missing=2) for c in goal_configurations(SPEC)[:6]]
+    obs = [o for o in observations(episodes) if not o.present.all()]
+    batch = next(iter(DataLoader([reasoner.encode(o) for o in obs], batch_size=len(obs))))
+    logits_o, _ = reasoner.network(batch, teacher_forcing=False)
+    absent = torch.tensor(np.array([~o.present for o in obs]))
+    assert (logits_o[:, 1:][absent] <= -1e8).all() and (logits_o[:, 1:][~absent] > -1e8).all()
+
+
+@pytest.mark.parametrize("key, value", [("edges", "ring"), ("readout", "max")])
+def test_ours_rejects_an_unknown_variant_naming_the_key(key, value):
+    with pytest.raises(ValueError, match=f"reasoning.{key}"):
+        REASONERS.validate({"name": "ours", key: value})
+
+
 def test_two_stage_classifier_reads_the_goal_selected_by_p_o():
     reasoner = REASONERS.build(REASONERS.validate({"name": "ours"}), spec=SPEC)
     batch = next(iter(DataLoader([reasoner.encode(o) for o in observations(demos(1))], batch_size=8)))
@@ -90,6 +121,9 @@ def test_a_trial_succeeds_only_if_all_2n_predictions_are_right():
     result = evaluate(_Oracle(wrong_index=9), episodes)  # stage 2 of trial 2 (8 stages per 4of5 trial)
     assert result["sr"] == pytest.approx(0.8)
     assert result["acc_g"] == pytest.approx(1 - 1 / 40)
+    # stage 2 is a placing stage: the per-stage accuracies say where the error is
+    assert result["acc_g_place"] == pytest.approx(1 - 1 / 20)
+    assert result["acc_g_pick"] == result["acc_o_pick"] == result["acc_o_place"] == 1.0
 
 
 @pytest.mark.parametrize("method", TORCH_METHODS)
@@ -98,3 +132,30 @@ def test_scored_labels_are_the_trained_labels(method):
     obs = observations(demos(2))
     encoded = np.array([[int(d.o_label), int(d.g_label)] for d in map(reasoner.encode, obs)])
     np.testing.assert_array_equal(reasoner.labels(obs), encoded)
+
+
+@pytest.mark.parametrize("cell, ratio", [((3, 5), 0.2), ((3, 5), 0.6), ((4, 5), 0.8), ((2, 3), 0.4)])
+def test_case1_split_tests_only_configurations_never_trained_on(cell, ratio):
+    spec = PackageToOrderSpec(n_objects=cell[1], n_selected=cell[0])
+    seen, unseen = case1_split(spec, ratio, np.random.default_rng(0))
+    assert not set(seen) & set(unseen)
+    assert sorted(seen + unseen) == sorted(goal_configurations(spec))
+    assert not {tuple(p for p, _ in c) for c in seen} & {tuple(p for p, _ in c) for c in unseen}  # whole selections
+    assert len(seen) == round(ratio * math.comb(cell[1], cell[0])) * math.factorial(cell[0])
+
+
+def test_case1_split_at_ratio_one_tests_the_trained_configurations():
+    seen, unseen = case1_split(SPEC, 1.0, np.random.default_rng(0))
+    assert seen == unseen and len(seen) == len(goal_configurations(SPEC))
+
+
+def test_pick_errors_say_where_a_wrong_pick_points():
+    """CASE 2: the human packed product 3 first; the robot should pick product 1 (label 2)."""
+    episode = sample_episode(SPEC, ((1, 0), (2, 1), (3, 2), (4, 3)), np.random.default_rng(0), case=2)
+    episode.human_order = (3,)
+    first_pick = stage_observations(episode)[0]
+    assert first_pick.o_label == 2 and first_pick.packed[3]
+    wrong = {0: "area", 4: "packed", 1: "unselected", 3: "other", 2: None}  # predicted P_o index -> kind
+    for predicted, kind in wrong.items():
+        errors = pick_errors([first_pick], np.array([predicted]))
+        assert errors == {f"pick_error_{k}": float(k == kind) for k in ("area", "packed", "unselected", "other")}

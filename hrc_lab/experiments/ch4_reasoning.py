@@ -16,6 +16,8 @@ import pandas as pd
 from tqdm import tqdm
 
 from hrc_lab.env.robot.spec import (
+    PICK,
+    PLACE,
     Episode,
     PackageToOrderSpec,
     combinations,
@@ -29,6 +31,10 @@ from hrc_lab.reasoning import REASONERS
 from hrc_lab.reasoning.base import Reasoner
 
 # Data and scoring ------------------------------------------------------------------------------------------------
+
+PICK_ERRORS = ("area", "packed", "unselected", "other")
+# per-head, per-stage accuracies and the kinds of picking errors, logged per case and ratio (Fig. 4.7) or scenario
+DIAGNOSTICS = ("acc_o_pick", "acc_o_place", "acc_g_pick", "acc_g_place", *(f"pick_error_{k}" for k in PICK_ERRORS))
 
 
 def episodes_for(spec, configurations, rng, repeats: int = 1, case: int = 1, n_missing=0) -> list[Episode]:
@@ -54,18 +60,42 @@ def observations_of(episodes: list[Episode]) -> list:
 
 
 def evaluate(reasoner: Reasoner, episodes: list[Episode]) -> dict[str, float]:
-    """Trial success rate (all 2n stage predictions right) and per-stage accuracies of P_o and P_g."""
+    """Trial success rate (all 2n stage predictions right) and the accuracies of P_o and P_g over all stage
+    predictions (``acc_o``, ``acc_g``) and per stage (``acc_o_pick``, ``acc_o_place``, ``acc_g_pick``, ...)."""
     per_episode = [stage_observations(e) for e in episodes]
     flat = [obs for stages in per_episode for obs in stages]
-    correct = reasoner.predict(flat) == reasoner.labels(flat)
+    predicted = reasoner.predict(flat)
+    correct = predicted == reasoner.labels(flat)
     bounds = np.cumsum([0] + [len(stages) for stages in per_episode])
     trials = [correct[a:b].all() for a, b in zip(bounds[:-1], bounds[1:])]
-    return {
+    stage = np.array([obs.stage for obs in flat])
+    metrics = {
         "sr": float(np.mean(trials)),
         "acc_o": float(correct[:, 0].mean()),
         "acc_g": float(correct[:, 1].mean()),
         "n_trials": float(len(trials)),
     }
+    for name, value in (("pick", PICK), ("place", PLACE)):
+        for head, column in (("o", 0), ("g", 1)):
+            metrics[f"acc_{head}_{name}"] = float(correct[stage == value, column].mean())
+    return metrics | pick_errors(flat, predicted[:, 0])
+
+
+def pick_errors(observations: list, predicted_o: np.ndarray) -> dict[str, float]:
+    """Where wrong P_o predictions at picking stages point, as shares of all picking stages: the packaging area (a
+    placing stage assumed), an already packed product, an unselected product, or another selected, unpacked one."""
+    counts = dict.fromkeys(PICK_ERRORS, 0)
+    picks = [(obs, p) for obs, p in zip(observations, predicted_o) if obs.stage == PICK]
+    for obs, p in picks:
+        if p == obs.o_label:
+            continue
+        if p == 0:
+            counts["area"] += 1
+        elif obs.packed[p - 1]:
+            counts["packed"] += 1
+        else:
+            counts["other" if obs.selected[p - 1] else "unselected"] += 1
+    return {f"pick_error_{kind}": n / max(1, len(picks)) for kind, n in counts.items()}
 
 
 def measure_latency(reasoner: Reasoner, observations: list, n_single: int = 100) -> dict[str, float]:
@@ -122,28 +152,38 @@ def table_4_1(ctx: RunContext) -> dict[str, float]:
 # Fig. 4.7 --------------------------------------------------------------------------------------------------------
 
 
+def case1_split(spec: PackageToOrderSpec, ratio: float, rng) -> tuple[list, list]:
+    """Fig. 4.7 CASE 1 (4.4.1): the goal configurations of round(λ x mCn) random selections, all their
+    permutations, to train on, and those of every other selection to test on; at λ = 1 nothing is unseen and the
+    test set is the training configurations again (with new positions)."""
+    selections = combinations(spec)
+    k = max(1, round(ratio * len(selections)))
+    order = rng.permutation(len(selections))
+    seen = [c for j in order[:k] for c in configurations_of(spec, selections[j])]
+    unseen = [c for j in order[k:] for c in configurations_of(spec, selections[j])]
+    return seen, unseen or seen
+
+
 def fig_4_7(ctx: RunContext) -> dict[str, float]:
     spec, protocol = ctx.cfg.env, ctx.cfg.protocol
-    selections = combinations(spec)
     configurations = goal_configurations(spec)
     metrics: dict[str, float] = {}
     rows = []
     for i, ratio in enumerate(tqdm(protocol.ratios, desc=f"fig 4.7 {spec.cell}", unit="ratio")):
         rng = ctx.rng(10 + i)
         # CASE 1: unseen goal configurations (selections never trained on)
-        k = max(1, round(ratio * len(selections)))
-        order = rng.permutation(len(selections))
-        seen = [configurations_of(spec, selections[j]) for j in order[:k]]
-        unseen = [configurations_of(spec, selections[j]) for j in order[k:]] or seen
-        reasoner, _ = train(ctx, spec, episodes_for(spec, sum(seen, []), rng), prefix=f"case1_lam{ratio}")
-        case1 = evaluate(reasoner, episodes_for(spec, sum(unseen, []), rng))
+        seen, unseen = case1_split(spec, ratio, rng)
+        reasoner, _ = train(ctx, spec, episodes_for(spec, seen, rng), prefix=f"case1_lam{ratio}")
+        case1 = evaluate(reasoner, episodes_for(spec, unseen, rng)) | {"n_train_demos": float(len(seen))}
         # CASE 2: unseen task structures from human intervention
         k = max(1, round(ratio * len(configurations)))
         trained = [configurations[j] for j in rng.permutation(len(configurations))[:k]]
         reasoner, _ = train(ctx, spec, episodes_for(spec, trained, rng), prefix=f"case2_lam{ratio}")
         case2 = evaluate(reasoner, random_episodes(spec, protocol.case2_tests, rng, case=2))
+        case2 |= {"n_train_demos": float(k)}
         for case, result in (("case1", case1), ("case2", case2)):
             metrics[f"{case}_sr_lam{ratio}"] = result["sr"]
+            metrics |= {f"{case}_{key}_lam{ratio}": result[key] for key in (*DIAGNOSTICS, "n_train_demos")}
             rows.append(result_row(ctx, cell=spec.cell, case=case, ratio=ratio, **result))
     ctx.tracker.log_table(pd.DataFrame(rows), "fig_4_7")
     return metrics
@@ -167,6 +207,7 @@ def practical(ctx: RunContext) -> dict[str, float]:
             reasoner, _ = train(ctx, spec, demos, prefix=label)
             result = evaluate(reasoner, tests)
             metrics[f"{label}_sr"] = result["sr"]
+            metrics |= {f"{label}_{key}": result[key] for key in DIAGNOSTICS}
             rows.append(result_row(ctx, scenario=label, cell=spec.cell, case="case1", **result))
 
     train_spec = dataclasses.replace(spec, n_selected=protocol.train_selected, n_slots=protocol.slots)
@@ -177,6 +218,7 @@ def practical(ctx: RunContext) -> dict[str, float]:
         for case in (1, 2):
             result = evaluate(reasoner, random_episodes(test_spec, protocol.test_tests, rng, case=case))
             metrics[f"order_size_{test_spec.cell}_case{case}_sr"] = result["sr"]
+            metrics |= {f"order_size_{test_spec.cell}_case{case}_{key}": result[key] for key in DIAGNOSTICS}
             rows.append(
                 result_row(
                     ctx,

@@ -7,6 +7,10 @@ A chain graph of the m products with node features (x, y, z, I) passes through t
 
 a mean readout G = mean_i h_i^K (Eq. 4.3) and a linear layer giving the m+1 logits of P_o. The stage classifier
 of :mod:`hrc_lab.reasoning.two_stage` maps [P_o, g_selected] to P_g; both are trained on L_re (Eq. 4.4-4.6).
+
+Ablations (``reasoning.edges``, ``reasoning.readout``; see :class:`ChainSAGEConfig`): the edge set, and a
+permutation-equivariant readout that is hrc_lab's, not the thesis': each product node scores itself, the packaging
+area is scored from G, and P_o is the softmax over these m+1 scores (absent products get none).
 """
 
 from __future__ import annotations
@@ -54,12 +58,36 @@ class ChainSAGEEncoder(nn.Module):
         return self.logits(batch.x, batch.edge_index, batch.batch)
 
 
+class NodeScoreEncoder(nn.Module):
+    """SAGEConv stack; logit of product i = a linear score of its node, logit of the packaging area = a linear
+    score of the mean readout G (hrc_lab's ablation; absent products get ``ABSENT``, a softmax weight of 0)."""
+
+    ABSENT = -1e9
+
+    def __init__(self, in_channels: int, hidden: int, n_out: int, layers: int = 3) -> None:
+        super().__init__()
+        self.sage = SAGEStack(in_channels, hidden, layers)
+        self.node_score = nn.Linear(hidden, 1)
+        self.area_score = nn.Linear(hidden, 1)
+        self.n_out = n_out
+
+    def forward(self, batch) -> torch.Tensor:
+        h = self.sage(batch.x, batch.edge_index)
+        area = self.area_score(global_mean_pool(h, batch.batch))
+        products = torch.full((len(area), self.n_out - 1), self.ABSENT, dtype=h.dtype)
+        products = products.index_put((batch.batch, batch.product), self.node_score(h).squeeze(-1))
+        return torch.cat([area, products], dim=1)
+
+
+ENCODERS = {"mean": ChainSAGEEncoder, "node_scores": NodeScoreEncoder}
+
+
 class ChainSAGEReasoner(TorchReasoner):
     cfg: ChainSAGEConfig
 
     def build_network(self) -> nn.Module:
-        encoder = ChainSAGEEncoder(4, self.cfg.hidden, self.n_o, self.cfg.layers)
+        encoder = ENCODERS[self.cfg.readout](4, self.cfg.hidden, self.n_o, self.cfg.layers)
         return TwoStageNet(encoder, StageClassifier(self.n_o, self.n_g, self.cfg.classifier_hidden))
 
     def encode(self, obs: StageObservation) -> Data:
-        return chain_graph(obs, self.spec, self.cfg.bidirectional)
+        return chain_graph(obs, self.spec, self.cfg.edges)

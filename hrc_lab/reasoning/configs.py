@@ -31,9 +31,26 @@ class TwoStageConfig(TorchReasonerConfig):
     classifier_hidden: int = 64
 
 
+CHAIN_EDGES = ("chain", "bidirectional", "all_earlier")
+READOUTS = ("mean", "node_scores")
+
+
 @dataclass
 class ChainSAGEConfig(TwoStageConfig):
-    bidirectional: bool = False  # the thesis links each node to the next one only
+    """``edges``: "chain" links each product's node to the next one (the thesis' reading of E = {e_ij}, default),
+    "bidirectional" both ways, "all_earlier" every earlier node to every later one (the other reading of
+    "i = 1..m-1 and j = 2..m"). ``readout``: "mean" is Eq. 4.3 + a linear layer (the thesis); "node_scores" is
+    hrc_lab's ablation, a score per product node and one for the packaging area from the mean readout."""
+
+    edges: str = "chain"
+    readout: str = "mean"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.edges not in CHAIN_EDGES:
+            raise ValueError(f"reasoning.edges must be one of {CHAIN_EDGES}, got {self.edges!r}")
+        if self.readout not in READOUTS:
+            raise ValueError(f"reasoning.readout must be one of {READOUTS}, got {self.readout!r}")
 
 
 FlatMLPConfig = TwoStageConfig

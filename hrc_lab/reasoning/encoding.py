@@ -62,16 +62,27 @@ def _common(obs: StageObservation, spec: PackageToOrderSpec, labels: tuple[int, 
     )
 
 
-def chain_graph(obs: StageObservation, spec: PackageToOrderSpec, bidirectional: bool = False) -> Data:
-    """Sec. 4.2.1: one node per present product in product order with features (x, y, z, I); directed edges link
-    each node to the next one (both ways with ``bidirectional``). Absent products (4.4.5) simply have no node."""
+def chain_edges(n: int, edges: str = "chain") -> np.ndarray:
+    """(2, E) directed edges between n nodes in product order: "chain" links node i to node i+1 (Sec. 4.2.1),
+    "bidirectional" adds i+1 -> i, "all_earlier" links every node i to every later node j > i."""
+    if edges == "all_earlier":
+        src, dst = np.triu_indices(n, k=1)
+        return np.stack([src, dst])
+    src = np.arange(n - 1)
+    links = [np.stack([src, src + 1])]
+    if edges == "bidirectional":
+        links.append(np.stack([src + 1, src]))
+    elif edges != "chain":
+        raise ValueError(f"edges must be 'chain', 'bidirectional' or 'all_earlier', got {edges!r}")
+    return np.concatenate(links, axis=1)
+
+
+def chain_graph(obs: StageObservation, spec: PackageToOrderSpec, edges: str = "chain") -> Data:
+    """Sec. 4.2.1: one node per present product in product order with features (x, y, z, I), linked by
+    :func:`chain_edges`. Absent products (4.4.5) simply have no node."""
     present = np.flatnonzero(obs.present)
     x = np.column_stack([scaled(obs.positions[present], spec), obs.selected[present]])
-    src = np.arange(len(present) - 1)
-    edges = [np.stack([src, src + 1])]
-    if bidirectional:
-        edges.append(np.stack([src + 1, src]))
-    edge_index = torch.tensor(np.concatenate(edges, axis=1), dtype=torch.long)
+    edge_index = torch.tensor(chain_edges(len(present), edges), dtype=torch.long)
     return Data(
         x=torch.tensor(x, dtype=torch.float32),
         edge_index=edge_index,
