@@ -243,3 +243,16 @@ def test_fig_4_9_section_gives_the_spread_over_seeds():
     section = SECTIONS["fig_4_9"](runs)
     assert "| case1  | picking | 0.30 ± 0.00 | 0.30 ± 0.10 |" in section.markdown
     assert set(section.table.columns) >= {"importance_mean", "importance_std"}
+
+
+def test_table_4_1_states_the_test_conditions_beside_the_thesis_ranges():
+    load_sections()
+    runs = pd.DataFrame({"method": ["ours"] * 2, "cell": ["3of5", "4of5"], "seed": [0, 0], "sr": [1.0, 1.0],
+                         "pick_span_x_m": [0.35, 0.34], "pick_span_y_m": [0.15, 0.15], "goal_span_x_m": [0.16, 0.08],
+                         "goal_span_y_m": [0.0, 0.08], "object_goal_min_m": [0.53, 0.49],
+                         "object_goal_max_m": [0.72, 0.75], "param.env.pending_spacing": ["0.08"] * 2,
+                         "latency_ms_batch1": [1.0, 1.0], "latency_ms_batched": [0.1, 0.1]})
+    text = SECTIONS["table_4_1"](runs).markdown
+    assert "picking positions span 0.35 m in x and 0.15 m in y (0.3 × 0.15)" in text
+    assert "goal positions 0.16 × 0.08 m (0.35 × 0.2); object-goal distances 0.49–0.75 m (0.38–0.82)" in text
+    assert "0.08 m (`env.pending_spacing`)" in text and "`env.box_jitter` (not logged)" in text

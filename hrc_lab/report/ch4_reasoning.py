@@ -68,6 +68,7 @@ def table_4_1(runs: pd.DataFrame) -> Section:
             "",
             lat.to_markdown(index=False),
         ]
+    text += _test_conditions(runs)
     return Section(
         "Table 4.1: reasoning success rates",
         "\n".join(text),
@@ -75,6 +76,26 @@ def table_4_1(runs: pd.DataFrame) -> Section:
         {"table_4_1.png": success_bars(pd.DataFrame(csv), cells, methods, LABELS, "Table 4.1",
                                        thesis_col="thesis_mean")},
     )
+
+
+def _test_conditions(runs: pd.DataFrame) -> list[str]:
+    """Sec. 4.4.3's ranges beside the ones the test trials of these runs covered (largest over cells and seeds)."""
+    if "pick_span_x_m" not in runs:
+        return []
+    ref = thesis_results()["ch4"]["text"]
+    span = runs[["pick_span_x_m", "pick_span_y_m", "goal_span_x_m", "goal_span_y_m"]].max()
+    low, high = runs["object_goal_min_m"].min(), runs["object_goal_max_m"].max()
+    pick, goal, dist = ref["position_variation_pick_m"], ref["position_variation_goal_m"], ref["object_goal_distance_m"]
+    return [
+        "",
+        f"Test conditions (Sec. 4.4.3's ranges in brackets): picking positions span {span.pick_span_x_m:.2f} m in x "
+        f"and {span.pick_span_y_m:.2f} m in y ({pick['x']} × {pick['y']}); goal positions {span.goal_span_x_m:.2f} × "
+        f"{span.goal_span_y_m:.2f} m ({goal['x']} × {goal['y']}); object-goal distances {low:.2f}–{high:.2f} m "
+        f"({dist[0]}–{dist[1]}). The picking span is the pending area's, one cell of "
+        f"{keyed(runs, 'env.pending_spacing', 'm')} per product; goal positions vary here only as far as the slots "
+        f"of the box do ({keyed(runs, 'env.box_jitter', 'm')}): the thesis states that object positions vary in "
+        "Table 4.1, and the reasoning inputs give goals relative to the box (`hrc_lab/reasoning/encoding.py`).",
+    ]
 
 
 def _lambda_columns(runs: pd.DataFrame, case: str) -> dict[float, str]:
