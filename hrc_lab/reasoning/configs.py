@@ -81,6 +81,9 @@ class RandomForestConfig:
 
 
 REASONERS.register("ours", ChainSAGEConfig, "hrc_lab.reasoning.chain_sage:ChainSAGEReasoner")
+# Issue 24's variants of ours, each a row of its own beside the thesis' (conf/reasoning/<name>.yaml sets the keys)
+REASONERS.register("ours_all_earlier", ChainSAGEConfig, "hrc_lab.reasoning.chain_sage:ChainSAGEReasoner")
+REASONERS.register("ours_node_scores", ChainSAGEConfig, "hrc_lab.reasoning.chain_sage:ChainSAGEReasoner")
 REASONERS.register("gnn", ObjectGoalGNNConfig, "hrc_lab.reasoning.object_goal_gnn:ObjectGoalGNNReasoner")
 REASONERS.register("gnn_task", ObjectGoalGNNConfig, "hrc_lab.reasoning.object_goal_gnn:ObjectGoalGNNReasoner")
 REASONERS.register("mlp", FlatMLPConfig, "hrc_lab.reasoning.flat_mlp:FlatMLPReasoner")

@@ -15,8 +15,11 @@ from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
 
 CELLS = ["2of3", "3of3", "3of5", "4of5"]
-METHODS = ["ours", "gnn", "gnn_task", "mlp", "rf"]
-LABELS = {"ours": "Ours", "gnn": "GNN [74]", "gnn_task": "GNN-task", "mlp": "MLP", "rf": "RF"}
+METHODS = ["ours", "ours_all_earlier", "ours_node_scores", "gnn", "gnn_task", "mlp", "rf"]
+LABELS = {"ours": "Ours", "ours_all_earlier": "Ours, all-earlier edges",
+          "ours_node_scores": "Ours + node scores (hrc_lab)", "gnn": "GNN [74]", "gnn_task": "GNN-task", "mlp": "MLP",
+          "rf": "RF"}
+OURS_FAMILY = ["ours", "ours_all_earlier", "ours_node_scores"]  # the thesis' module and issue 24's variants of it
 
 
 def _ordered(values, order) -> list:
@@ -173,21 +176,22 @@ def _where_ours_fails(runs: pd.DataFrame, cells: list[str]) -> list[str]:
 
 
 def _diagnostics(runs: pd.DataFrame, points: list, demos: str | None = None) -> list[str]:
-    """Per-head, per-stage accuracies of ``ours`` (mean over seeds) and where its wrong picks point, one row per
-    point ``(labels, row mask, metric pattern with {} for the metric)``; then the head and the error kind that
-    account for most failures, read from the same numbers. Empty rows (metrics not logged) are left out."""
-    ours = runs.method == "ours"
+    """Per-head, per-stage accuracies of ``ours`` and its variants (mean over seeds) and where their wrong picks
+    point, one row per method and point ``(labels, row mask, metric pattern with {} for the metric)``; then the head
+    and the error kind that account for most of ``ours``' failures, read from the same numbers. Rows whose metrics
+    were not logged are left out."""
     records = []
-    for labels, mask, pattern in points:
-        part = runs[ours & mask]
-        keys = [*HEADS, *PICK_ERRORS, "sr"] + ([demos] if demos else [])
-        if part.empty or any(pattern.format(key) not in part for key in keys):
-            continue
-        record = {**labels, "SR": part[pattern.format("sr")].mean()}
-        if demos:
-            record["train demos"] = round(part[pattern.format(demos)].mean())
-        records.append(record | {label: part[pattern.format(key)].mean()
-                                 for key, label in {**HEADS, **PICK_ERRORS}.items()})
+    for method in [m for m in OURS_FAMILY if m in set(runs.method)]:
+        for labels, mask, pattern in points:
+            part = runs[(runs.method == method) & mask]
+            keys = [*HEADS, *PICK_ERRORS, "sr"] + ([demos] if demos else [])
+            if part.empty or any(pattern.format(key) not in part for key in keys):
+                continue
+            record = {"method": LABELS[method], **labels, "SR": part[pattern.format("sr")].mean()}
+            if demos:
+                record["train demos"] = round(part[pattern.format(demos)].mean())
+            records.append(record | {label: part[pattern.format(key)].mean()
+                                     for key, label in {**HEADS, **PICK_ERRORS}.items()})
     if not records:
         return ["", "Per-head accuracies: not logged by these runs (logged since the per-head diagnostics)."]
     table = pd.DataFrame(records)
@@ -200,13 +204,13 @@ def _diagnostics(runs: pd.DataFrame, points: list, demos: str | None = None) -> 
         "",
         table.to_markdown(index=False, floatfmt=".2f"),
     ]
-    failing = table[table.SR < 0.95]
+    failing = table[(table.method == LABELS["ours"]) & (table.SR < 0.95)]
     if len(failing):
         heads = failing[list(HEADS.values())].mean()
         errors = failing[list(PICK_ERRORS.values())].mean()
         lines += [
             "",
-            f"Over the {len(failing)} points where ours scores below 0.95, the weakest head is "
+            f"Over the {len(failing)} points where Ours scores below 0.95, its weakest head is "
             f"{heads.idxmin()} (mean accuracy {heads.min():.2f}; the others {heads.drop(heads.idxmin()).min():.2f} "
             f"or more), and wrong picks point mostly {errors.idxmax()} ({errors.max():.2f} of picking stages).",
         ]
