@@ -117,7 +117,9 @@ def test_report_keeps_default_rows_and_gives_each_ablation_its_own_section(store
     ablation = section_text(markdown, f"{TITLE} — ablation: {ABLATION}")
     assert f"Runs: sweep {ABLATION_SWEEP} (1 run); variant vdeadbeef" in ablation
     assert "0.10 ± 0.00" in row_of(ablation) and "0.90" not in ablation and "3of5" not in ablation
-    assert f"Reproduce: `hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib {ABLATION}`" in markdown
+    # the exact ablation: the sweep keys' values its jobs used, then its own overrides
+    rerun = f"env=package_to_order_4of5 reasoning=ours seed=0 {ABLATION}"
+    assert f"Reproduce: `hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib {rerun}`" in markdown
     assert markdown.index(TITLE + "\n") < markdown.index(f"{TITLE} — ablation")
     assert markdown.count("— ablation:") == 1
     assert "0.55" not in markdown and "0.35" not in markdown  # RUNNING and KILLED runs never read

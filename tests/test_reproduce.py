@@ -128,3 +128,15 @@ def test_every_chapter_has_steps(selection):
     steps = reproduce.select(PLAN, [selection])
     assert steps and steps[-1].kind == "report"
     assert all(Path(sys.executable).parent.joinpath(step.argv[0]).name.startswith("hrc-lab") for step in steps)
+
+
+def test_check_notes_committed_ablations_the_plan_does_not_rerun(tmp_path):
+    committed, fresh = tmp_path / "committed", tmp_path / "fresh"
+    _write(committed, "ch3_motion", _table(0.8, 0.5))
+    _write(fresh, "ch3_motion", _table(0.8, 0.5))
+    _table(0.1, 0.1).to_csv(committed / "ch3_motion" / "table_3_1_v005bbb65.csv", index=False)
+    _table(0.1, 0.1).to_csv(committed / "ch3_motion" / "table_3_1_extra.csv", index=False)
+    differences, notes = compare_reports(committed, fresh, ["ch3_motion"])
+    assert differences == ["ch3_motion/table_3_1_extra.csv: committed, but the fresh report has no such table"]
+    assert notes == ["ch3_motion/table_3_1_v005bbb65.csv: an ablation, which the plan does not re-run; its section "
+                     "names its command"]

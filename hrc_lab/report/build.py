@@ -9,7 +9,8 @@ import matplotlib.pyplot as plt
 import pandas as pd
 from mlflow.tracking import MlflowClient
 
-from hrc_lab.report.runs import DEFAULT_VARIANT, fetch_runs, sweeps_line, variants_of
+from hrc_lab.cli import NEUTRAL_KEYS
+from hrc_lab.report.runs import DEFAULT_VARIANT, fetch_runs, number_first, sweeps_line, variants_of
 from hrc_lab.report.sections import SECTIONS, TOPICS, Section, load_sections
 from hrc_lab.tracking import resolve_tracking_uri
 
@@ -60,13 +61,33 @@ def _tagged(name: str, variant: str) -> str:
 def build_sections(
     tracking_uri: str, experiment: str, table: str, sweep: str | None = None, variant: str | None = DEFAULT_VARIANT
 ) -> list[tuple[str, str, Section]]:
-    """(variant, its overrides, section) for each variant of the finished runs read (one unless ``variant`` is
-    None: then every variant present, default first), each built from its own runs only."""
+    """(variant, the arguments that re-run it, section) for each variant of the finished runs read (one unless
+    ``variant`` is None: then every variant present, default first), each built from its own runs only."""
     runs = fetch_runs(tracking_uri, experiment, sweep, variant)
     if runs.empty:
         return []
-    return [(name, overrides, section_of(runs[runs["variant"] == name], table))
+    return [(name, rerun_arguments(runs[runs["variant"] == name], overrides),
+             section_of(runs[runs["variant"] == name], table))
             for name, overrides in variants_of(runs).items()]
+
+
+def rerun_arguments(runs: pd.DataFrame, overrides: str) -> str:
+    """The arguments to add to the table's command to re-run exactly ``runs`` of an ablation: the values each sweep
+    key took in them (an ablation often covers a few cells or seeds, e.g. ``env=a,b seed=0,1,2``), read from the
+    jobs' ``overrides`` tags, then the variant's own ``overrides``. "" for the default variant."""
+    if not overrides or "overrides" not in runs:
+        return overrides
+    own = {item.split("=", 1)[0] for item in overrides.split()}
+    values: dict[str, list[str]] = {}
+    for job in runs["overrides"].dropna():
+        for item in str(job).split():
+            key, _, value = item.partition("=")
+            if key in own or key.lstrip("+~").split(".")[0] in NEUTRAL_KEYS or not value:
+                continue
+            if value not in values.setdefault(key, []):
+                values[key].append(value)
+    swept = [f"{key}={','.join(sorted(found, key=number_first))}" for key, found in values.items()]
+    return " ".join([*swept, overrides])
 
 
 def write_section(section: Section, folder: Path, tracking_uri: str, stem: str) -> str:

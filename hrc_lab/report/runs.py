@@ -94,7 +94,7 @@ def setting_values(runs: pd.DataFrame, key: str) -> list[str]:
     column = f"{PARAM_PREFIX}{key}"
     if column not in runs:
         return []
-    return sorted({str(v) for v in runs[column].dropna()}, key=_number_first)
+    return sorted({str(v) for v in runs[column].dropna()}, key=number_first)
 
 
 def setting(runs: pd.DataFrame, key: str) -> str:
@@ -128,7 +128,8 @@ def setting_number(runs: pd.DataFrame, key: str) -> float | None:
         return None
 
 
-def _number_first(value: str):
+def number_first(value: str):
+    """Sort key: numbers by value first, then other text."""
     try:
         return (0, float(value), value)
     except ValueError:
