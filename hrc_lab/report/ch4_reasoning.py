@@ -205,13 +205,16 @@ def _diagnostics(runs: pd.DataFrame, points: list, demos: str | None = None) -> 
         table.to_markdown(index=False, floatfmt=".2f"),
     ]
     failing = table[(table.method == LABELS["ours"]) & (table.SR < 0.95)]
-    if len(failing):
-        heads = failing[list(HEADS.values())].mean()
-        errors = failing[list(PICK_ERRORS.values())].mean()
+    groups = failing.groupby("case") if "case" in failing else [("", failing)]
+    for case, part in groups:
+        if part.empty:
+            continue
+        heads = part[list(HEADS.values())].mean()
+        errors = part[list(PICK_ERRORS.values())].mean()
         lines += [
             "",
-            f"Over the {len(failing)} points where Ours scores below 0.95, its weakest head is "
-            f"{heads.idxmin()} (mean accuracy {heads.min():.2f}; the others {heads.drop(heads.idxmin()).min():.2f} "
+            f"Over the {len(part)} {case + ' ' if case else ''}points where Ours scores below 0.95, its weakest head "
+            f"is {heads.idxmin()} (mean accuracy {heads.min():.2f}; the others {heads.drop(heads.idxmin()).min():.2f} "
             f"or more), and wrong picks point mostly {errors.idxmax()} ({errors.max():.2f} of picking stages).",
         ]
     return lines
@@ -225,9 +228,9 @@ def _lambda_plot(frame: pd.DataFrame, cells, methods, thesis):
             for method in methods:
                 part = frame[(frame.case == case) & (frame.cell == cell) & (frame.method == method)]
                 part = part.sort_values("ratio")
-                ax.errorbar(
-                    part.ratio, part.sr_mean, yerr=part.sr_std, marker="o", capsize=2, label=LABELS.get(method, method)
-                )
+                variant = method in OURS_FAMILY[1:]  # issue 24's variants of ours: dashed, beside the thesis' rows
+                ax.errorbar(part.ratio, part.sr_mean, yerr=part.sr_std, marker="o", capsize=2,
+                            linestyle="--" if variant else "-", label=LABELS.get(method, method))
             if case == "case2" and cell in thesis["case2_ours_sr_at_lambda_1"]:
                 ax.scatter(
                     [1.0],
