@@ -125,3 +125,24 @@ def test_every_experiment_has_a_report_section_and_topic(compose_config, experim
 def test_table_3_1_protocol_errors_name_the_key(compose_config, override, key):
     with pytest.raises(ConfigError, match=key):
         validate_config(compose_config("experiment=ch3/table_3_1", override))
+
+
+@pytest.mark.parametrize("experiment", EXPERIMENTS)
+def test_every_module_an_experiment_sweeps_over_is_accepted_by_its_protocol(experiment):
+    """A sweep list names only modules its protocol runs with (``ACCEPTS``), so no sweep stops at its first job of a
+    module added to the list but not to the protocol (static: the yaml files, no composition)."""
+    from omegaconf import OmegaConf
+
+    from hrc_lab.experiments.schemas import ACCEPTS
+
+    conf = Path(__file__).resolve().parents[1] / "conf"
+    raw = OmegaConf.load(conf / "experiment" / f"{experiment}.yaml")
+    protocol = OmegaConf.select(raw, "protocol.name")
+    params = OmegaConf.select(raw, "hydra.sweeper.params") or {}
+    for group, values in params.items():
+        if group in ("env", "seed") or protocol not in ACCEPTS or "." in group:
+            continue
+        for value in str(values).split(","):
+            option = OmegaConf.load(conf / group / f"{value.strip()}.yaml")
+            name = option.get("name") or OmegaConf.select(option, f"{group}.name")  # a global-package option
+            assert name in ACCEPTS[protocol].get(group, ("none",)), f"{experiment}: {group}={value} ({name})"

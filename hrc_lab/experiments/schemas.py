@@ -566,10 +566,10 @@ PROTOCOLS.register("ch6_table_6_2_single", Table62SingleProtocol, f"{CH6}:table_
 
 
 # The env and modules each protocol runs with (names of conf/<group>/*.yaml); a group not listed must be "none".
-CH4_REASONERS = ("ours", "gnn", "gnn_task", "mlp", "rf")
+CH4_REASONERS = ("ours", "ours_all_earlier", "ours_node_scores", "gnn", "gnn_task", "mlp", "rf")
 MOTION_PLANNERS = ("tc_vi", "tc_vi_indexed", "vi", "mlp", "gpr")
 ACTION_DETECTORS = ("hand_lstm_fcn", "cnn_lstm", "hand_cnn", "cnn_lstm_video")
-GRASP_SOLVERS = ("gnn_att", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att", "gvmrn_rf")
+GRASP_SOLVERS = ("gnn_att", "gnn_att_oracle", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att", "gvmrn_rf")
 ROBOT_CELLS = ("package_to_order", "error_correction")
 GUIDED_RL = ("ddpg_her", "ddpg_her_guided")
 ACCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
