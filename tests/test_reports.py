@@ -245,6 +245,10 @@ def test_fig_4_9_section_gives_the_spread_over_seeds():
                          "case1_picking_importance_I": [0.4, 0.2], "case1_picking_importance_y": [0.3, 0.3]})
     section = SECTIONS["fig_4_9"](runs)
     assert "| case1  | picking | 0.30 ± 0.00 | 0.30 ± 0.10 |" in section.markdown
+    assert "by less than the spread, so no single most important feature, in case1 picking" in section.markdown
+    runs["case1_picking_importance_I"] = [0.6, 0.62]
+    assert "leads the next feature by more than their seed spread in case1 picking (I 0.61 vs y 0.30)" in (
+        SECTIONS["fig_4_9"](runs).markdown)
     assert set(section.table.columns) >= {"importance_mean", "importance_std"}
 
 
@@ -254,8 +258,9 @@ def test_table_4_1_states_the_test_conditions_beside_the_thesis_ranges():
                          "pick_span_x_m": [0.35, 0.34], "pick_span_y_m": [0.15, 0.15], "goal_span_x_m": [0.16, 0.08],
                          "goal_span_y_m": [0.0, 0.08], "object_goal_min_m": [0.53, 0.49],
                          "object_goal_max_m": [0.72, 0.75], "param.env.pending_spacing": ["0.08"] * 2,
+                         "param.env.box_jitter.0": ["0.0"] * 2, "param.env.box_jitter.1": ["0.05"] * 2,
                          "latency_ms_batch1": [1.0, 1.0], "latency_ms_batched": [0.1, 0.1]})
     text = SECTIONS["table_4_1"](runs).markdown
     assert "picking positions span 0.35 m in x and 0.15 m in y (0.3 × 0.15)" in text
     assert "goal positions 0.16 × 0.08 m (0.35 × 0.2); object-goal distances 0.49–0.75 m (0.38–0.82)" in text
-    assert "0.08 m (`env.pending_spacing`)" in text and "`env.box_jitter` (not logged)" in text
+    assert "0.08 m (`env.pending_spacing`)" in text and "box jitter ± 0.0 × ± 0.05 m" in text

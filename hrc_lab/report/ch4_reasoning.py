@@ -96,7 +96,8 @@ def _test_conditions(runs: pd.DataFrame) -> list[str]:
         f"{span.goal_span_y_m:.2f} m ({goal['x']} × {goal['y']}); object-goal distances {low:.2f}–{high:.2f} m "
         f"({dist[0]}–{dist[1]}). The picking span is the pending area's, one cell of "
         f"{keyed(runs, 'env.pending_spacing', 'm')} per product; goal positions vary here only as far as the slots "
-        f"of the box do ({keyed(runs, 'env.box_jitter', 'm')}): the thesis states that object positions vary in "
+        f"of the box do (box jitter ± {setting(runs, 'env.box_jitter.0')} × ± {setting(runs, 'env.box_jitter.1')} m, "
+        "`env.box_jitter`): the thesis states that object positions vary in "
         "Table 4.1, and the reasoning inputs give goals relative to the box (`hrc_lab/reasoning/encoding.py`).",
     ]
 
@@ -305,6 +306,22 @@ def practical(runs: pd.DataFrame) -> Section:
     return Section("Practical scenarios (4.4.5)", "\n".join(text), pd.DataFrame(records), {})
 
 
+def _separable(frame: pd.DataFrame) -> str:
+    """Which (case, stage) have a largest share that leads the runner-up by more than the larger of their seed
+    spreads, and which do not (then the ranking cannot be told from these seeds)."""
+    clear, unclear = [], []
+    for (case, stage), part in frame.groupby(["case", "stage"]):
+        first, second = part.sort_values("mean", ascending=False).iloc[:2].itertuples()
+        where = f"{case} {stage} ({first.feature} {first.mean:.2f} vs {second.feature} {second.mean:.2f})"
+        (clear if first.mean - second.mean > max(first.std, second.std) else unclear).append(where)
+    parts = []
+    if clear:
+        parts.append(f"It leads the next feature by more than their seed spread in {', '.join(clear)}")
+    if unclear:
+        parts.append(f"by less than the spread, so no single most important feature, in {', '.join(unclear)}")
+    return "; ".join(parts) + "." if parts else ""
+
+
 @register_section("fig_4_9")
 def fig_4_9(runs: pd.DataFrame) -> Section:
     columns = [c for c in runs.columns if "_importance_" in c]
@@ -322,7 +339,7 @@ def fig_4_9(runs: pd.DataFrame) -> Section:
         "",
         table.reset_index().to_markdown(index=False),
         "",
-        f"Largest mean share: {ranked}.",
+        f"Largest mean share: {ranked}. {_separable(frame)}",
     ]
     shown = runs.sort_values("seed").iloc[0]
     text += ["", f"Masks below: seed {shown.seed}."]
