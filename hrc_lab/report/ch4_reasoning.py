@@ -258,8 +258,9 @@ def _lambda_plot(frame: pd.DataFrame, cells, methods, thesis):
             ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel("success rate")
     axes[1, 0].set_ylabel("success rate")
-    axes[0, -1].legend(fontsize=8)
-    fig.tight_layout()
+    legend = {label: handle for ax in axes.flat for handle, label in zip(*ax.get_legend_handles_labels())}
+    fig.legend(legend.values(), legend.keys(), loc="lower center", ncol=4, fontsize=8)  # below the panels
+    fig.tight_layout(rect=(0, 0.09, 1, 1))
     return fig
 
 
