@@ -140,6 +140,7 @@ def fig_4_7(runs: pd.DataFrame) -> Section:
         f"{thesis['case1_4of5_trained_demos']} trained demonstrations; CASE 2, ours at λ = 1: "
         f"3of5 {thesis['case2_ours_sr_at_lambda_1']['3of5']}, 4of5 {thesis['case2_ours_sr_at_lambda_1']['4of5']}.",
     ]
+    text += _thesis_claims(frame, thesis)
     for case in ("case1", "case2"):
         for cell in cells:
             part = frame[(frame.case == case) & (frame.cell == cell)]
@@ -157,6 +158,29 @@ def fig_4_7(runs: pd.DataFrame) -> Section:
         frame,
         {"fig_4_7.png": _lambda_plot(frame, cells, methods, thesis)},
     )
+
+
+def _thesis_claims(frame: pd.DataFrame, thesis: dict) -> list[str]:
+    """The thesis' three Fig. 4.7 statements beside ``ours`` and its variants at the same points."""
+    case2 = thesis["case2_ours_sr_at_lambda_1"]
+    claims = [
+        ("CASE 1, 3of5, unseen configurations at λ = 0.6", "case1", "3of5", 0.6,
+         fmt(thesis["case1_ours_unseen_sr_at_lambda_0.6_3of5"])),
+        (f"CASE 1, 4of5, {thesis['case1_4of5_unseen_configs_handled']} unseen configurations at λ = 0.8", "case1",
+         "4of5", 0.8, f"handled ({thesis['case1_4of5_trained_demos']} demos)"),
+        ("CASE 2, 3of5, λ = 1", "case2", "3of5", 1.0, fmt(case2["3of5"], digits=3)),
+        ("CASE 2, 4of5, λ = 1", "case2", "4of5", 1.0, fmt(case2["4of5"], digits=3)),
+    ]
+    methods = [m for m in OURS_FAMILY if m in set(frame.method)]
+    rows = []
+    for label, case, cell, ratio, ref in claims:
+        row = {"thesis statement": label, "thesis": ref}
+        for method in methods:
+            hit = frame[(frame.case == case) & (frame.cell == cell) & (frame.method == method)
+                        & np.isclose(frame.ratio, ratio)]
+            row[LABELS[method]] = fmt(hit.sr_mean.iloc[0], hit.sr_std.iloc[0]) if len(hit) else "–"
+        rows.append(row)
+    return ["", pd.DataFrame(rows).to_markdown(index=False)] if methods else []
 
 
 HEADS = {"acc_o_pick": "P_o pick", "acc_o_place": "P_o place", "acc_g_pick": "P_g pick", "acc_g_place": "P_g place"}
