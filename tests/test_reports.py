@@ -267,3 +267,16 @@ def test_table_4_1_states_the_test_conditions_beside_the_thesis_ranges():
     assert "picking positions span 0.35 m in x and 0.15 m in y (0.3 × 0.15)" in text
     assert "goal positions 0.16 × 0.08 m (0.35 × 0.2); object-goal distances 0.49–0.75 m (0.38–0.82)" in text
     assert "0.08 m (`env.pending_spacing`)" in text and "box jitter ± 0.0 × ± 0.05 m" in text
+
+
+def test_table_4_2_states_its_test_conditions():
+    load_sections()
+    runs = pd.DataFrame({"method": ["tc_vi"], "cell": ["4of5"], "seed": [0], "sr": [0.9], "r2": [0.99],
+                         "fail_pick": [0.1], "planning_ms": [0.3], "steps_per_object": [47.0],
+                         "pick_span_x_m": [0.35], "pick_span_y_m": [0.15], "goal_span_x_m": [0.35],
+                         "goal_span_y_m": [0.28], "object_goal_min_m": [0.40], "object_goal_max_m": [0.84],
+                         "param.env.box_jitter.0": ["0.135"], "param.env.box_jitter.1": ["0.1"]})
+    text = SECTIONS["table_4_2"](runs).markdown
+    assert "goal positions 0.35 × 0.28 m (0.35 × 0.2); object-goal distances 0.40–0.84 m (0.38–0.82)" in text
+    assert "box jitter ± 0.135 × ± 0.1 m" in text and "the motion module reads" in text
+    assert "Test conditions" not in SECTIONS["table_4_2"](runs.drop(columns="pick_span_x_m")).markdown

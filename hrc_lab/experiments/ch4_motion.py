@@ -12,7 +12,7 @@ from sklearn.model_selection import GroupKFold
 from tqdm import tqdm
 
 from hrc_lab.env import ENVS
-from hrc_lab.env.robot.spec import combinations
+from hrc_lab.env.robot.spec import combinations, goal_configurations, position_ranges, sample_episode
 from hrc_lab.experiments.context import RunContext
 from hrc_lab.motion import MOTIONS
 
@@ -66,6 +66,12 @@ def train_motion_module(ctx: RunContext, env, demos, max_steps: int, tolerance: 
     return TwoLevelMotion(planner, ndp, DESIGNED_SUBGOALS, max_steps, tolerance)
 
 
+def sampled_ranges(spec, rng, repeats: int = 5) -> dict[str, float]:
+    """Sec. 4.4.3's ranges as the cell's scene sampler draws them (the test envs sample scenes from the same spec):
+    ``repeats`` scenes of every goal configuration."""
+    return position_ranges([sample_episode(spec, c, rng) for c in goal_configurations(spec) for _ in range(repeats)])
+
+
 def table_4_2(ctx: RunContext) -> dict[str, float]:
     from hrc_lab.motion.two_level import package_pairs, run_package
 
@@ -99,6 +105,7 @@ def table_4_2(ctx: RunContext) -> dict[str, float]:
         "steps_per_object": float(done.steps.sum() / max(done.objects.sum(), 1)),
         "n_demos": float(len(demos)),
         "n_pairs": float(len(pairs.x)),
+        **sampled_ranges(spec, ctx.rng(42)),
     }
     for failure in ("pick", "placement", "collision", "horizon"):
         metrics[f"fail_{failure}"] = float((trials.failure == failure).mean())

@@ -23,6 +23,7 @@ from hrc_lab.env.robot.spec import (
     combinations,
     configurations_of,
     goal_configurations,
+    position_ranges,
     sample_episode,
     stage_observations,
 )
@@ -96,26 +97,6 @@ def pick_errors(observations: list, predicted_o: np.ndarray) -> dict[str, float]
         else:
             counts["other" if obs.selected[p - 1] else "unselected"] += 1
     return {f"pick_error_{kind}": n / max(1, len(picks)) for kind, n in counts.items()}
-
-
-def position_ranges(episodes: list[Episode]) -> dict[str, float]:
-    """The test conditions of Sec. 4.4.3 as they occur in ``episodes``: the span (max - min, metres) in x and y of
-    the selected products' picking positions and of their goal positions, and the range of object-goal distances."""
-    picks, goals = [], []
-    for episode in episodes:
-        for product, slot in episode.configuration:
-            picks.append(episode.positions[product])
-            goals.append(episode.slot_positions[slot])
-    picks, goals = np.asarray(picks), np.asarray(goals)
-    distances = np.linalg.norm(picks - goals, axis=1)
-    return {
-        "pick_span_x_m": float(np.ptp(picks[:, 0])),
-        "pick_span_y_m": float(np.ptp(picks[:, 1])),
-        "goal_span_x_m": float(np.ptp(goals[:, 0])),
-        "goal_span_y_m": float(np.ptp(goals[:, 1])),
-        "object_goal_min_m": float(distances.min()),
-        "object_goal_max_m": float(distances.max()),
-    }
 
 
 def measure_latency(reasoner: Reasoner, observations: list, n_single: int = 100) -> dict[str, float]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from hrc_lab.report.ch4_reasoning import conditions_paragraph
 from hrc_lab.report.plots import success_bars
 from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting
 from hrc_lab.report.sections import Section, register_section
@@ -69,5 +70,7 @@ def table_4_2(runs: pd.DataFrame) -> Section:
         steps = ours.steps_per_object.mean()
         text += ["", f"Planning latency of our sub-goal planner: **{latency:.2f} ms** per sub-goal on one CPU core "
                      f"(thesis {ref_ms} ms); {steps:.1f} control steps per product (thesis 27-47)."]
+    text += conditions_paragraph(runs, "the motion module reads the requested product's and the box's positions "
+                                       "(Sec. 4.2.2), so both ranges are its test conditions.")
     return Section("Table 4.2: sub-goal regressors and the motion module", "\n".join(text), pd.DataFrame(csv),
                    {"table_4_2.png": success_bars(pd.DataFrame(csv), cells, methods, LABELS, "Table 4.2")})

@@ -71,7 +71,8 @@ def table_4_1(runs: pd.DataFrame) -> Section:
             "",
             lat.to_markdown(index=False),
         ]
-    text += _test_conditions(runs)
+    text += conditions_paragraph(runs, "the thesis states that object positions vary in Table 4.1, and the reasoning "
+                                  "inputs give goals relative to the box (`hrc_lab/reasoning/encoding.py`).")
     return Section(
         "Table 4.1: reasoning success rates",
         "\n".join(text),
@@ -81,10 +82,12 @@ def table_4_1(runs: pd.DataFrame) -> Section:
     )
 
 
-def _test_conditions(runs: pd.DataFrame) -> list[str]:
-    """Sec. 4.4.3's ranges beside the ones the test trials of these runs covered (largest over cells and seeds)."""
+def conditions_paragraph(runs: pd.DataFrame, goals: str) -> list[str]:
+    """Sec. 4.4.3's ranges beside the ones these runs covered (largest over cells and seeds; runs log
+    ``pick_span_*``, ``goal_span_*``, ``object_goal_*``), then ``goals``: why goal positions vary as they do."""
     if "pick_span_x_m" not in runs:
         return []
+    runs = runs.dropna(subset=["pick_span_x_m"])
     ref = thesis_results()["ch4"]["text"]
     span = runs[["pick_span_x_m", "pick_span_y_m", "goal_span_x_m", "goal_span_y_m"]].max()
     low, high = runs["object_goal_min_m"].min(), runs["object_goal_max_m"].max()
@@ -95,10 +98,9 @@ def _test_conditions(runs: pd.DataFrame) -> list[str]:
         f"and {span.pick_span_y_m:.2f} m in y ({pick['x']} × {pick['y']}); goal positions {span.goal_span_x_m:.2f} × "
         f"{span.goal_span_y_m:.2f} m ({goal['x']} × {goal['y']}); object-goal distances {low:.2f}–{high:.2f} m "
         f"({dist[0]}–{dist[1]}). The picking span is the pending area's, one cell of "
-        f"{keyed(runs, 'env.pending_spacing', 'm')} per product; goal positions vary here only as far as the slots "
-        f"of the box do (box jitter ± {setting(runs, 'env.box_jitter.0')} × ± {setting(runs, 'env.box_jitter.1')} m, "
-        "`env.box_jitter`): the thesis states that object positions vary in "
-        "Table 4.1, and the reasoning inputs give goals relative to the box (`hrc_lab/reasoning/encoding.py`).",
+        f"{keyed(runs, 'env.pending_spacing', 'm')} per product (fewer products, a shorter area); goal positions "
+        f"vary with the box (box jitter ± {setting(runs, 'env.box_jitter.0')} × ± {setting(runs, 'env.box_jitter.1')} "
+        f"m, `env.box_jitter`): {goals}",
     ]
 
 

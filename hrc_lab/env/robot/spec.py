@@ -180,6 +180,26 @@ def sample_episode(
     return episode
 
 
+def position_ranges(episodes: list[Episode]) -> dict[str, float]:
+    """The test conditions of Sec. 4.4.3 as they occur in ``episodes``: the span (max - min, metres) in x and y of
+    the selected products' picking positions and of their goal positions, and the range of object-goal distances."""
+    picks, goals = [], []
+    for episode in episodes:
+        for product, slot in episode.configuration:
+            picks.append(episode.positions[product])
+            goals.append(episode.slot_positions[slot])
+    picks, goals = np.asarray(picks), np.asarray(goals)
+    distances = np.linalg.norm(picks - goals, axis=1)
+    return {
+        "pick_span_x_m": float(np.ptp(picks[:, 0])),
+        "pick_span_y_m": float(np.ptp(picks[:, 1])),
+        "goal_span_x_m": float(np.ptp(goals[:, 0])),
+        "goal_span_y_m": float(np.ptp(goals[:, 1])),
+        "object_goal_min_m": float(distances.min()),
+        "object_goal_max_m": float(distances.max()),
+    }
+
+
 # Stage observations ----------------------------------------------------------------------------------------------
 
 
