@@ -280,3 +280,4 @@ def test_table_4_2_states_its_test_conditions():
     assert "goal positions 0.35 × 0.28 m (0.35 × 0.2); object-goal distances 0.40–0.84 m (0.38–0.82)" in text
     assert "box jitter ± 0.135 × ± 0.1 m" in text and "the motion module reads" in text
     assert "Test conditions" not in SECTIONS["table_4_2"](runs.drop(columns="pick_span_x_m")).markdown
+    assert "Test conditions" not in SECTIONS["table_4_2"](runs.assign(pick_span_x_m=float("nan"))).markdown

@@ -85,9 +85,9 @@ def table_4_1(runs: pd.DataFrame) -> Section:
 def conditions_paragraph(runs: pd.DataFrame, goals: str) -> list[str]:
     """Sec. 4.4.3's ranges beside the ones these runs covered (largest over cells and seeds; runs log
     ``pick_span_*``, ``goal_span_*``, ``object_goal_*``), then ``goals``: why goal positions vary as they do."""
-    if "pick_span_x_m" not in runs:
+    runs = runs.dropna(subset=["pick_span_x_m"]) if "pick_span_x_m" in runs else runs.iloc[:0]
+    if runs.empty:  # runs older than the spans
         return []
-    runs = runs.dropna(subset=["pick_span_x_m"])
     ref = thesis_results()["ch4"]["text"]
     span = runs[["pick_span_x_m", "pick_span_y_m", "goal_span_x_m", "goal_span_y_m"]].max()
     low, high = runs["object_goal_min_m"].min(), runs["object_goal_max_m"].max()
