@@ -22,6 +22,7 @@ import torch
 from torch_geometric.data import Data
 
 from hrc_lab.env.robot.spec import PackageToOrderSpec, StageObservation
+from hrc_lab.reasoning.configs import CHAIN_EDGES
 
 POSITION_SCALE = 10.0
 
@@ -72,8 +73,8 @@ def chain_edges(n: int, edges: str = "chain") -> np.ndarray:
     links = [np.stack([src, src + 1])]
     if edges == "bidirectional":
         links.append(np.stack([src + 1, src]))
-    elif edges != "chain":
-        raise ValueError(f"edges must be 'chain', 'bidirectional' or 'all_earlier', got {edges!r}")
+    elif edges not in CHAIN_EDGES:
+        raise ValueError(f"edges must be one of {CHAIN_EDGES}, got {edges!r}")
     return np.concatenate(links, axis=1)
 
 
