@@ -28,6 +28,8 @@ from torch.utils.data import DataLoader, Dataset, RandomSampler, TensorDataset
 from torchmetrics.functional.classification import binary_accuracy as torchmetrics_binary_accuracy
 from torchmetrics.functional.classification import multiclass_accuracy
 
+from hrc_lab.config import LR_SCHEDULES
+
 
 class Trainer(pl.Trainer):
     """Lightning's Trainer whose ``fit`` continues from ``resume_checkpoint`` when one is given."""
@@ -154,17 +156,22 @@ class SupervisedModule(pl.LightningModule):
 
     Logs ``train_loss`` and ``train_<name>`` for every other value per epoch: the mean over the epoch's batches
     weighted by ``batch_size(batch)`` (default :func:`batch_size_of`). ``optimizer``: ``"adam"`` or ``"adamw"``,
-    with ``lr`` and ``weight_decay``. Models with more to configure (the detector's learning-rate schedule)
-    subclass it; :class:`ValidatedModule` also scores validation data."""
+    with ``lr`` and ``weight_decay``; ``schedule``: ``"constant"`` (``lr`` throughout) or ``"cosine"`` (a linear
+    warm-up over ``warmup_steps``, at most half the fit, then a cosine decay to 0 over the fit's steps).
+    :class:`ValidatedModule` also scores validation data."""
 
     def __init__(self, network: nn.Module, objective: Objective, lr: float, weight_decay: float = 0.0,
-                 optimizer: str = "adam", batch_size: Callable[[Any], int] = batch_size_of) -> None:
+                 optimizer: str = "adam", batch_size: Callable[[Any], int] = batch_size_of,
+                 schedule: str = "constant", warmup_steps: int = 0) -> None:
         super().__init__()
         if optimizer not in OPTIMIZERS:
             raise ValueError(f"optimizer must be one of {sorted(OPTIMIZERS)}, got {optimizer!r}")
+        if schedule not in LR_SCHEDULES:
+            raise ValueError(f"schedule must be one of {LR_SCHEDULES}, got {schedule!r}")
         self.network = network
         self.objective = objective
         self.lr, self.weight_decay, self.optimizer_name = lr, weight_decay, optimizer
+        self.schedule, self.warmup_steps = schedule, warmup_steps
         self.batch_size_of = batch_size
 
     def _step(self, batch: Any, stage: str) -> torch.Tensor:
@@ -177,7 +184,19 @@ class SupervisedModule(pl.LightningModule):
         return self._step(batch, "train")
 
     def configure_optimizers(self):
-        return OPTIMIZERS[self.optimizer_name](self.parameters(), lr=self.lr, weight_decay=self.weight_decay)
+        optimizer = OPTIMIZERS[self.optimizer_name](self.parameters(), lr=self.lr, weight_decay=self.weight_decay)
+        if self.schedule == "constant":
+            return optimizer
+        total = max(1, int(self.trainer.estimated_stepping_batches))
+        warmup = min(self.warmup_steps, total // 2)
+
+        def factor(step: int) -> float:
+            if step < warmup:
+                return (step + 1) / warmup
+            return 0.5 * (1 + np.cos(np.pi * min(1.0, (step - warmup) / max(1, total - warmup))))
+
+        scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, factor)
+        return {"optimizer": optimizer, "lr_scheduler": {"scheduler": scheduler, "interval": "step"}}
 
 
 class ValidatedModule(SupervisedModule):

@@ -135,21 +135,8 @@ class DetectorModule(SupervisedModule):
     then a cosine decay to 0 over the fit's steps; logs ``train_loss`` and ``train_<each loss>`` per epoch."""
 
     def __init__(self, model: FasterRCNN, cfg: DetectorConfig) -> None:
-        super().__init__(model, partial(detection_objective, flip=cfg.flip), cfg.lr, cfg.weight_decay, "adamw")
-        self.warmup_steps = cfg.warmup_steps
-
-    def configure_optimizers(self):
-        optimizer = super().configure_optimizers()
-        total = max(1, int(self.trainer.estimated_stepping_batches))
-        warmup = min(self.warmup_steps, total // 2)
-
-        def factor(step: int) -> float:
-            if step < warmup:
-                return (step + 1) / warmup
-            return 0.5 * (1 + np.cos(np.pi * min(1.0, (step - warmup) / max(1, total - warmup))))
-
-        scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, factor)
-        return {"optimizer": optimizer, "lr_scheduler": {"scheduler": scheduler, "interval": "step"}}
+        super().__init__(model, partial(detection_objective, flip=cfg.flip), cfg.lr, cfg.weight_decay, "adamw",
+                         schedule="cosine", warmup_steps=cfg.warmup_steps)
 
 
 class ObjectDetector(nn.Module):

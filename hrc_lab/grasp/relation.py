@@ -86,10 +86,12 @@ def relation_objective(network: RelationNet, batch) -> tuple[torch.Tensor, dict[
 
 
 class RelationModule(SupervisedModule):
-    """:func:`relation_objective` with Adam; logs ``train_loss`` per epoch, averaged over labelled nodes."""
+    """:func:`relation_objective` with Adam and ``grasp.schedule``; logs ``train_loss`` per epoch, averaged over
+    labelled nodes."""
 
-    def __init__(self, network: RelationNet, lr: float) -> None:
-        super().__init__(network, relation_objective, lr, batch_size=labelled_nodes)
+    def __init__(self, network: RelationNet, cfg: GraspSolverConfig) -> None:
+        super().__init__(network, relation_objective, cfg.lr, batch_size=labelled_nodes, schedule=cfg.schedule,
+                         warmup_steps=cfg.warmup_steps)
 
 
 class RelationSolver:
@@ -145,7 +147,7 @@ class RelationSolver:
         torch.manual_seed(self.seed)
         self.network = RelationNet(graphs[0].x.shape[1], self.cfg)
         data = FixedStepDataModule(graphs, self.cfg.batch_size, steps_per_epoch(self.cfg.steps, trainer))
-        trainer.fit(RelationModule(self.network, self.cfg.lr), datamodule=data)
+        trainer.fit(RelationModule(self.network, self.cfg), datamodule=data)
 
     @torch.no_grad()
     def read(self, graphs: list[Data]) -> list[list[NodeReading]]:

@@ -149,11 +149,12 @@ def solver_objective(network: GraspSolverNet, batch) -> tuple[torch.Tensor, dict
 
 
 class GraspSolverModule(SupervisedModule):
-    """:func:`solver_objective` with Adam; logs ``train_loss``, ``train_loss_grasp``, ``train_loss_text`` and
-    ``train_grasp_acc`` per epoch, averaged over labelled nodes."""
+    """:func:`solver_objective` with Adam and ``grasp.schedule``; logs ``train_loss``, ``train_loss_grasp``,
+    ``train_loss_text`` and ``train_grasp_acc`` per epoch, averaged over labelled nodes."""
 
-    def __init__(self, network: GraspSolverNet, lr: float) -> None:
-        super().__init__(network, solver_objective, lr, batch_size=labelled_nodes)
+    def __init__(self, network: GraspSolverNet, cfg: GraspSolverConfig) -> None:
+        super().__init__(network, solver_objective, cfg.lr, batch_size=labelled_nodes, schedule=cfg.schedule,
+                         warmup_steps=cfg.warmup_steps)
 
 
 @dataclass
@@ -212,7 +213,7 @@ class GraspSolver:
         torch.manual_seed(self.seed)
         self.network = GraspSolverNet(graphs[0].x.shape[1], self.vocab, self.cfg)
         data = FixedStepDataModule(graphs, self.cfg.batch_size, steps_per_epoch(self.cfg.steps, trainer))
-        trainer.fit(GraspSolverModule(self.network, self.cfg.lr), datamodule=data)
+        trainer.fit(GraspSolverModule(self.network, self.cfg), datamodule=data)
 
     @torch.no_grad()
     def read(self, graphs: list[Data], batch_size: int = 256) -> list[list[NodeReading]]:
