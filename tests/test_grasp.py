@@ -2,6 +2,7 @@
 Algorithm 4 iteration."""
 
 import numpy as np
+import pandas as pd
 import pytest
 import torch
 from omegaconf import OmegaConf
@@ -10,14 +11,17 @@ from torch_geometric.loader import DataLoader
 from hrc_lab.config import validate_config
 from hrc_lab.env.clutter.rule import solution_types
 from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene
+from hrc_lab.experiments.ch6_grasp import object_accuracy
 from hrc_lab.grasp import GRASPS
 from hrc_lab.grasp.configs import GraspSolverConfig
+from hrc_lab.grasp.diagnostics import failure_cause, scene_geometry
 from hrc_lab.grasp.graph import edge_weights, fully_connected, scene_graph
-from hrc_lab.grasp.iterative import iterate, nearest_of_types
+from hrc_lab.grasp.iterative import IterativeAnswer, iterate, nearest_of_types
 from hrc_lab.grasp.observation import SceneNodes
 from hrc_lab.grasp.relation import RELATIONS, RelationSolver, relation_filter, relation_label
 from hrc_lab.grasp.solver import GraspSolverModule, GraspSolverNet, NodeReading, SolutionVocabulary
 from hrc_lab.registry import ConfigError
+from hrc_lab.training import SupervisedModule
 
 
 def test_inverse_distance_weights_follow_eq_6_1():
@@ -78,7 +82,7 @@ def test_decoder_learns_a_tiny_vocabulary(decoder):
         )
         graphs.append(graph)
     net = GraspSolverNet(graphs[0].x.shape[1], vocab, cfg)
-    module = GraspSolverModule(net, lr=1e-2)
+    module = GraspSolverModule(net, GraspSolverConfig(lr=1e-2, schedule="constant"))  # no Trainer here
     optimiser = module.configure_optimizers()
     batch = next(iter(DataLoader(graphs, batch_size=2)))
     module.log_dict = module.log = lambda *a, **k: None
@@ -196,6 +200,65 @@ def test_relation_filter_and_labels_of_gvmrn_rf():
     graph = RelationSolver(None, GraspSolverConfig()).training_graph(nodes, {"a"})
     assert graph.x.shape == (len(pairs), 4 + 2 * 3 + 3)
     assert graph.labelled.tolist() == [pair[0] in (0, 2) for pair in pairs]  # relations of the requested a's only
+
+
+def test_scene_geometry_measures_blockers_against_the_distance_filter():
+    """Three parts on a 100 px image: b (1) blocks a (0) 0.1 away; c (2) is 0.5 away from both and blocks none."""
+    nodes = _nodes(["a", "b", "c"], [[0, 0, 10, 10], [10, 0, 20, 10], [0, 50, 10, 60]], [[1], [], []])
+    geometry = scene_geometry([nodes], threshold=0.16)
+    assert geometry.pair_blocks.sum() == 1  # only the edge b -> a
+    assert geometry.pair_distance[geometry.pair_blocks] == pytest.approx([0.1])
+    assert geometry.neighbours.tolist() == [1, 1, 0]
+    metrics = geometry.metrics(0.16)
+    assert metrics["geometry_blockers_within_filter"] == 1.0
+    assert metrics["geometry_pairs_within_filter"] == pytest.approx(2 / 6)
+    # a's incoming Eq. 6.1 weights: 1/0.1 from b, 1/0.5 from c -> b gets 10/12 of a, against 1/2 uniform
+    assert metrics["geometry_blocker_weight_ratio"] == pytest.approx((10 / 12) / 0.5, rel=1e-5)
+    alone = scene_geometry([_nodes(["a"], [[0, 0, 10, 10]], [[]])], 0.16).metrics(0.16)
+    assert all(np.isnan(v) for v in alone.values())  # no pair at all: nothing measured
+
+
+def _two_step_answer():
+    """Request a (0): "move b"; then b (1) is graspable."""
+    nodes = _nodes(["a", "b", "c"], [[0, 0, 10, 10], [10, 0, 20, 10], [0, 50, 10, 60]], [[1], [], []])
+    nodes.rule_solution = [["move", "b"], ["grasp"], ["grasp"]]
+    answer = IterativeAnswer(requests=[[0], [1]], solutions=[["move", "b"]], grasp=1)
+    right = [[NodeReading(0.1, ["move", "b"]), NodeReading(0.9, ["grasp"]), NodeReading(0.9, ["grasp"])]] * 2
+    return nodes, answer, right
+
+
+def test_failure_causes_follow_the_pipeline():
+    nodes, answer, right = _two_step_answer()
+    assert failure_cause(nodes, "a", answer, right) == "other"  # every step agrees with the rule
+    wrong_solution = [[NodeReading(0.1, ["move", "c"])] + right[0][1:], right[1]]
+    assert failure_cause(nodes, "a", answer, wrong_solution) == "solution"
+    wrong_grasp = [right[0], [right[1][0], NodeReading(0.2, ["move", "c"]), right[1][2]]]
+    assert failure_cause(nodes, "a", answer, wrong_grasp) == "graspability"
+    nodes.truth = np.array([0, -1, 2])  # b, which the rule's iteration from a needs, is not detected
+    assert failure_cause(nodes, "a", answer, wrong_grasp) == "detection"
+    nodes, answer, right = _two_step_answer()
+    nodes.truth = np.array([0, 1, -1])  # c is missed, but no answer about a depends on it
+    assert failure_cause(nodes, "a", answer, right) == "other"
+    nodes.labels = ["a", "b", "a"]  # ... and a spurious a does
+    assert failure_cause(nodes, "a", answer, right) == "detection"
+
+
+def test_object_accuracy_separates_detection_from_the_solver():
+    outcomes = pd.DataFrame({"type": ["a", "a", "b", "c"], "detected": [True, True, True, False],
+                             "grasp_ok": [True, True, False, False], "correct": [True, False, False, False]})
+    result = object_accuracy(outcomes)
+    assert result == {"oa": 0.25, "grasp_acc": 0.5, "fit_acc": pytest.approx(2 / 3), "detected": 0.75}
+    assert np.isnan(object_accuracy(outcomes.iloc[:0])["oa"])
+
+
+def test_learning_rate_schedules():
+    network = torch.nn.Linear(1, 1)
+    with pytest.raises(ValueError, match="schedule must be one of .*'cosin'"):
+        SupervisedModule(network, lambda net, batch: (net(batch).sum(), {}), 0.1, schedule="cosin")
+    with pytest.raises(ValueError, match="grasp.schedule must be one of .*'linear'"):
+        GraspSolverConfig(schedule="linear")
+    with pytest.raises(ValueError, match="grasp.warmup_steps must be >= 0"):
+        GraspSolverConfig(warmup_steps=-1)
 
 
 TINY_CH6 = ["hydra.mode=RUN", "trainer.max_epochs=1", "grasp.steps=2", "grasp.detector.steps=2",

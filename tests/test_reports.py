@@ -281,3 +281,36 @@ def test_table_4_2_states_its_test_conditions():
     assert "box jitter ± 0.135 × ± 0.1 m" in text and "the motion module reads" in text
     assert "Test conditions" not in SECTIONS["table_4_2"](runs.drop(columns="pick_span_x_m")).markdown
     assert "Test conditions" not in SECTIONS["table_4_2"](runs.assign(pick_span_x_m=float("nan"))).markdown
+
+
+def test_table_6_1_section_decomposes_the_object_accuracy():
+    load_sections()
+    seeds = [0, 1]
+    runs = pd.DataFrame({
+        "method": ["gnn_att"] * 2, "seed": seeds, "cell": ["clutter"] * 2, "run_id": ["r0", "r1"],
+        "train_grasp_acc": [0.99, 1.0], "train_part_grasp_acc": [0.95, 0.96], "train_detected": [0.97, 0.97],
+        **{f"{stem}_{k}": [0.8, 0.9] for stem in ("oa", "fit_acc", "detected") for k in (1, 2, 3)},
+        "oa_type_a": [0.6, 0.7], "oa_type_b": [0.9, 0.9], "oa_type_c": [1.0, 1.0],
+        "geometry_blockers_within_filter": [0.97] * 2, "geometry_blocker_distance_median": [0.08] * 2,
+        "geometry_blocker_distance_max": [0.2] * 2, "geometry_pairs_within_filter": [0.3] * 2,
+        "geometry_pair_distance_median": [0.25] * 2, "geometry_neighbours_within_filter": [1.5] * 2,
+        "geometry_blocker_weight_ratio": [2.5] * 2,
+    })
+    section = SECTIONS["table_6_1"](runs)
+    assert "| GNN_Att (ours) | 0.995 ± 0.005 (1.000)" in section.markdown  # Train_Acc: the solver's fit
+    assert "test: OA of part a" in section.markdown and "0.650 ± 0.050" in section.markdown
+    assert "OA about 0.81 (Sec. 6.4.1)" in section.markdown
+    assert "97% lie within 0.16" in section.markdown and "2.50× the uniform weight" in section.markdown
+    assert section.artifacts == {"geometry.png": ("r0", "figures/geometry.png")}
+    older = SECTIONS["table_6_1"](runs.drop(columns=["train_detected", "geometry_blockers_within_filter"]))
+    assert "Where the object accuracy is lost" not in older.markdown and "lie within" not in older.markdown
+
+
+def test_table_6_2_section_gives_the_failure_causes():
+    load_sections()
+    runs = pd.DataFrame({"method": ["gnn_att"] * 2, "seed": [0, 1], "cell": ["clutter"] * 2, "run_id": ["r0", "r1"],
+                         "acc_3": [0.7, 0.8], "fail_detection_3": [0.1, 0.0], "fail_graspability_3": [0.2, 0.1],
+                         "fail_solution_3": [0.0, 0.1], "fail_other_3": [0.0, 0.0]})
+    markdown = SECTIONS["table_6_2_single"](runs).markdown
+    assert "| graspability    | 0.150 ± 0.050" in markdown
+    assert "Why answers are wrong" not in SECTIONS["table_6_2_single"](runs.drop(columns="fail_detection_3")).markdown
