@@ -47,6 +47,21 @@ def demo():
     return record_episode(env, ScriptedExpert(env)), env
 
 
+def test_dart_noise_perturbs_what_is_executed_and_records_the_experts_action():
+    env = ErrorCorrection(task="one_object", case=1, seed=0)
+    executed, step = [], env.step
+    env.step = lambda action: (executed.append(np.array(action)), step(action))[1]
+    demo = record_episode(env, ScriptedExpert(env), action_noise=0.01, rng=np.random.default_rng(0))
+    executed = np.array(executed)
+    assert np.array_equal(executed[:, -1], demo.actions[:, -1])  # suction exactly as the expert commanded
+    noise = executed[:, :-1] - demo.actions[:, :-1]
+    assert 0.008 < noise.std() < 0.012 and abs(noise.mean()) < 0.002
+    with pytest.raises(ValueError, match="action_noise needs an rng"):
+        record_episode(env, ScriptedExpert(env), action_noise=0.01)
+    with pytest.raises(ValueError, match="action_noise must be >= 0"):
+        record_episode(env, ScriptedExpert(env), action_noise=-0.01, rng=np.random.default_rng(0))
+
+
 def test_hdf5_round_trip_in_robomimic_layout(tmp_path, demo):
     demo, env = demo
     demo.stage_bounds, demo.stage_subgoals = stage_subgoals(demo, env.stage_label, 5, "resample")

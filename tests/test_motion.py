@@ -17,12 +17,19 @@ from hrc_lab.motion.configs import STAGE_STARTS, NDPConfig, SubgoalConfig
 from hrc_lab.motion.networks import NeuralDynamicPlanner, TaskConditionedVI, variational_loss
 from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier, base_frame, build_subgoal_planner, jitter_r
 from hrc_lab.motion.two_level import (
+    CAPPED,
+    COLLISION,
+    HORIZON,
+    REACHED,
+    Rollout,
     TwoLevelMotion,
+    capped_share,
     classifier_pairs,
     correction_input,
     correction_pairs,
     dynamics_pairs,
     package_pairs,
+    reach,
     run_correction,
     run_package,
 )
@@ -256,3 +263,46 @@ def test_table_3_1_report_marks_the_placement_oracle_as_a_diagnosis():
     oracle = table_3_1(pd.DataFrame([{**row, "param.protocol.placement_oracle": "True"}]))
     default = table_3_1(pd.DataFrame([{**row, "param.protocol.placement_oracle": "False"}]))
     assert "Diagnosis, not a result" in oracle.markdown and "Diagnosis, not a result" not in default.markdown
+
+
+class _LineEnv:
+    """A lip that moves 1 cm along x per step; optionally a collision or the episode's end at a given step."""
+
+    def __init__(self, collide_at: int | None = None, done_at: int | None = None) -> None:
+        self.x, self.collide_at, self.done_at, self.collisions, self.done = 0.0, collide_at, done_at, [], False
+
+    def eef_position(self):
+        return np.array([self.x, 0.0, 0.0])
+
+    lip_target_position = eef_position
+
+    def step(self, action):
+        self.x += 0.01
+        steps = round(self.x / 0.01)
+        self.collisions = ["arm-table"] if steps == self.collide_at else []
+        self.done = steps == self.done_at
+
+
+class _ZeroPlanner:
+    def act(self, r, s):
+        return np.zeros(3)
+
+
+@pytest.mark.parametrize("env,goal,status,steps", [
+    (_LineEnv(), 0.05, REACHED, 5),
+    (_LineEnv(), 0.30, CAPPED, 10),  # 10 steps reach 0.10 m of 0.30: the cap, not a failure
+    (_LineEnv(collide_at=3), 0.30, COLLISION, 3),
+    (_LineEnv(done_at=4), 0.30, HORIZON, 4),
+])
+def test_reach_says_why_it_stopped(env, goal, status, steps):
+    assert reach(env, _ZeroPlanner(), np.array([goal, 0.0, 0.0]), False, 10, 0.004) == (steps, status)
+
+
+def test_rollouts_count_capped_subgoals():
+    out = Rollout()
+    for status in (REACHED, CAPPED, CAPPED, REACHED):
+        out.count(7, status)
+    assert (out.steps, out.subgoals, out.capped) == (28, 4, 2)
+    trials = pd.DataFrame({"subgoals": [4, 6], "capped": [2, 1]})
+    assert capped_share(trials) == 0.3
+    assert math.isnan(capped_share(pd.DataFrame({"subgoals": [0], "capped": [0]})))

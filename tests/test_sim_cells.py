@@ -93,6 +93,28 @@ def test_suction_attaches_the_touched_object_and_releases_it(ec):
     assert ec.object_positions()[held, 2] < lifted  # released: it fell
 
 
+def test_grip_after_step_grips_at_the_end_of_the_step_that_touches():
+    """The expert's way down to its first part, replayed with suction on all the way (as the closed loop descends):
+    the default cell grips when the next command is applied, one with ``grip_after_step`` at the end of the step in
+    which the lip reached the face."""
+    env = ErrorCorrection(task="one_object", case=1, seed=0)
+    env.reset()
+    expert, actions = ScriptedExpert(env), []
+    while env.suction.held < 0:
+        actions.append(np.array([*expert.act().action[:-1], 1.0]))
+        env.step(actions[-1])
+    cells = {switch: ErrorCorrection(task="one_object", case=1, seed=0, grip_after_step=switch)
+             for switch in (False, True)}
+    for cell in cells.values():
+        cell.reset()
+        for action in actions[:-1]:
+            cell.step(action)
+    assert cells[False].suction.held == -1 and cells[True].suction.held == env.suction.held >= 0
+    cells[False].step(actions[-1])
+    assert cells[False].suction.held == env.suction.held
+    assert make_env(ErrorCorrectionConfig(sim=SimSettings(grip_after_step=True)), seed=0).grip_after_step
+
+
 def test_suction_does_nothing_in_the_air(ec):
     ec.reset()
     ec.step(np.array([0.0, 0.0, 0.0, 1.0]))

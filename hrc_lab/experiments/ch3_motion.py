@@ -15,9 +15,11 @@ COLOURS = {1: "blue", 2: "red"}
 
 
 def correction_demos(env, n: int, protocol, desc: str, placement_noise: float = 0.0,
-                     rng: np.random.Generator | None = None) -> list:
+                     rng: np.random.Generator | None = None, action_noise: float = 0.0,
+                     action_rng: np.random.Generator | None = None) -> list:
     """Expert demonstrations with their change-point stages and ``protocol.subgoals_per_stage`` re-sampled
-    sub-goals per stage (3.3); the expert aims its placements with ``placement_noise`` (m) drawn from ``rng``.
+    sub-goals per stage (3.3); the expert aims its placements with ``placement_noise`` (m) drawn from ``rng``, and
+    its executed joint deltas carry ``action_noise`` (rad, DART) drawn from ``action_rng``.
     Kept: the successful demonstrations whose segmentation found a picking and a placing stage per moved object."""
     from hrc_lab.data.segmentation import stage_subgoals
     from hrc_lab.env.robot.expert import ScriptedExpert
@@ -25,7 +27,7 @@ def correction_demos(env, n: int, protocol, desc: str, placement_noise: float = 
 
     expert, demos = ScriptedExpert(env, placement_noise=placement_noise, rng=rng), []
     for _ in tqdm(range(n), desc=desc, unit="demo"):
-        demo = record_episode(env, expert)
+        demo = record_episode(env, expert, action_noise, action_rng)
         demo.stage_bounds, demo.stage_subgoals = stage_subgoals(
             demo, env.stage_label, protocol.subgoals_per_stage, "resample", protocol.segmentation_penalty)
         if demo.success and len(demo.stage_bounds) == 2 * len(env.expert_plan()):
@@ -49,12 +51,12 @@ def train_two_level(ctx: RunContext, env, demos, planner_input: str = "full"):
 
 
 def table_3_1(ctx: RunContext) -> dict[str, float]:
-    from hrc_lab.motion.two_level import run_correction
+    from hrc_lab.motion.two_level import capped_share, run_correction
 
     config, protocol = ctx.cfg.env, ctx.cfg.protocol
     env = ENVS.build(config, seed=ctx.seed)
     demos = correction_demos(env, protocol.demos, protocol, f"demos {config.cell}", protocol.placement_noise,
-                             ctx.rng(5))
+                             ctx.rng(5), protocol.action_noise, ctx.rng(6))
     classifier, planner, ndp = train_two_level(ctx, env, demos, protocol.planner_input)
     test = ENVS.build(config, seed=1000 + ctx.seed)
     rows, stage_rows = [], []
@@ -73,7 +75,7 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
         for obj in test.expert_plan():
             distance = float(np.linalg.norm(final[obj] - test.goals[obj]))
             row = {"trial": trial, "object": COLOURS[obj], "distance": distance, "collision": bool(test.collisions),
-                   "failure": out.failure,
+                   "failure": out.failure, "subgoals": out.subgoals, "capped": out.capped,
                    "steps": out.object_steps.get(obj, np.nan), "planning_ms": float(np.mean(out.planning_ms))}
             for threshold in protocol.thresholds:
                 row[f"success_{threshold:g}"] = distance <= threshold and not test.collisions
@@ -90,6 +92,7 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
     per_trial = trials.drop_duplicates("trial")
     for failure in ("pick", "collision", "horizon"):
         metrics[f"fail_{failure}"] = float((per_trial.failure == failure).mean())
+    metrics["subgoals_capped"] = capped_share(per_trial)
     return metrics | stage_metrics(pd.DataFrame(stage_rows), ctx)
 
 

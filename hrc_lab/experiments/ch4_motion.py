@@ -73,7 +73,7 @@ def sampled_ranges(spec, rng, repeats: int = 5) -> dict[str, float]:
 
 
 def table_4_2(ctx: RunContext) -> dict[str, float]:
-    from hrc_lab.motion.two_level import package_pairs, run_package
+    from hrc_lab.motion.two_level import capped_share, package_pairs, run_package
 
     spec, protocol, motion = ctx.cfg.env, ctx.cfg.protocol, ctx.cfg.motion
     train_env = ENVS.build(spec, seed=ctx.seed)
@@ -92,6 +92,7 @@ def table_4_2(ctx: RunContext) -> dict[str, float]:
         out = run_package(env, module)
         rows.append({"trial": trial, "case": 1 + trial % 2, "success": out.success, "failure": out.failure,
                      "steps": out.steps, "objects": len(out.object_steps),
+                     "subgoals": out.subgoals, "capped": out.capped,
                      "planning_ms": float(np.mean(out.planning_ms)) if out.planning_ms else np.nan})
     trials = pd.DataFrame(rows)
     ctx.tracker.log_table(trials, "trials")
@@ -103,6 +104,7 @@ def table_4_2(ctx: RunContext) -> dict[str, float]:
         "sr_case2": float(trials[trials.case == 2].success.mean()),
         "planning_ms": float(trials.planning_ms.mean()),
         "steps_per_object": float(done.steps.sum() / max(done.objects.sum(), 1)),
+        "subgoals_capped": capped_share(trials),
         "n_demos": float(len(demos)),
         "n_pairs": float(len(pairs.x)),
         **sampled_ranges(spec, ctx.rng(42)),

@@ -29,9 +29,18 @@ def _env_args(ctx: RunContext, env) -> dict:
     }
 
 
-def record_episode(env, expert):
-    """Run one expert episode from a fresh reset and return it as a :class:`~hrc_lab.data.demos.Demo`."""
+def record_episode(env, expert, action_noise: float = 0.0, rng: np.random.Generator | None = None):
+    """Run one expert episode from a fresh reset and return it as a :class:`~hrc_lab.data.demos.Demo`.
+
+    ``action_noise`` > 0 (DART, Laskey et al. 2017): the executed action's joint deltas get Gaussian noise of that
+    std (rad, drawn from ``rng``) while the expert's own action is recorded, so the demonstrations visit the states
+    a slightly-off closed loop reaches, labelled with the expert's correction from there."""
     from hrc_lab.data.demos import OBS_KEYS, Demo
+
+    if action_noise < 0:
+        raise ValueError(f"action_noise must be >= 0 rad, got {action_noise}")
+    if action_noise and rng is None:
+        raise ValueError("action_noise needs an rng (the scene's own generator must not be consumed)")
 
     obs = env.reset()
     expert.reset()
@@ -49,7 +58,10 @@ def record_episode(env, expert):
         for key in columns:
             columns[key].append(np.asarray(obs[key], dtype=np.float32))
         states.append(env.sim.get_state().flatten())
-        obs, reward, done, info = env.step(step.action)
+        executed = np.array(step.action, dtype=float)
+        if action_noise:
+            executed[:-1] += rng.normal(0.0, action_noise, len(executed) - 1)  # joint deltas; suction as commanded
+        obs, reward, done, info = env.step(executed)
         actions.append(step.action)
         rewards.append(reward)
         dones.append(done)

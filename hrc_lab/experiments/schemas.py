@@ -376,7 +376,9 @@ class Table31Protocol:
     sub-goal planner observes besides r, ``full`` (the thesis' three object positions) or ``selected`` (the
     labelled object's and green's, :func:`hrc_lab.motion.two_level.correction_input`; an ablation).
     ``placement_oracle``: every released object is set exactly onto its goal before the next stage, so a second
-    object's trial starts as the demonstrations' did (a diagnosis; the first object's SR is then not a result)."""
+    object's trial starts as the demonstrations' did (a diagnosis; the first object's SR is then not a result).
+    ``action_noise``: std (rad) of Gaussian noise on the joint deltas the demonstrations execute, the expert's
+    action being recorded (DART; ``hrc_lab.experiments.collect.record_episode``; an ablation)."""
 
     demos: int = 20
     trials: int = 50
@@ -391,8 +393,11 @@ class Table31Protocol:
     stage_labels: str = "classifier"
     planner_input: str = "full"
     placement_oracle: bool = False
+    action_noise: float = 0.0
 
     def __post_init__(self) -> None:
+        if self.action_noise < 0:
+            raise ValueError(f"protocol.action_noise must be >= 0 rad, got {self.action_noise}")
         if self.stage_labels not in STAGE_LABELS:
             raise ValueError(f"protocol.stage_labels must be one of {list(STAGE_LABELS)}, got '{self.stage_labels}'")
         if self.planner_input not in PLANNER_INPUTS:

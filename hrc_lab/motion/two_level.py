@@ -149,19 +149,41 @@ class Rollout:
     pick_offsets: list[np.ndarray] = field(default_factory=list)
     # Ch.3: at each picking stage's start, how far the objects moved before it are from their goals (worst), m
     moved_errors: list[float] = field(default_factory=list)
+    subgoals: int = 0  # sub-goals the dynamic planner was sent to
+    capped: int = 0  # of them, those it had not reached when their max_steps ran out
+
+    def count(self, steps: int, status: str) -> None:
+        """Book one :func:`reach`."""
+        self.steps += steps
+        self.subgoals += 1
+        self.capped += status == CAPPED
 
 
-def reach(env, ndp, subgoal: np.ndarray, suction: bool, max_steps: int, tolerance: float) -> tuple[int, bool]:
-    """Act with the dynamic planner until the lip is within ``tolerance`` of ``subgoal`` (or ``max_steps``).
-    Returns (steps taken, still fine), where not fine means a collision or the horizon."""
+REACHED, CAPPED, COLLISION, HORIZON = "reached", "capped", "collision", "horizon"
+
+
+def capped_share(trials) -> float:
+    """The share of the trials' sub-goals that ran out of steps (columns ``subgoals`` and ``capped``, one row per
+    trial); NaN without sub-goals (RRT-Connect plans no sub-goals)."""
+    total = int(trials.subgoals.sum())
+    return float(trials.capped.sum() / total) if total else float("nan")
+
+
+def reach(env, ndp, subgoal: np.ndarray, suction: bool, max_steps: int, tolerance: float) -> tuple[int, str]:
+    """Act with the dynamic planner until the lip is within ``tolerance`` of ``subgoal``, for at most ``max_steps``.
+    Returns (steps taken, status): ``reached``; ``capped`` when the steps ran out first (the thesis' 30-step cap:
+    the caller plans its next sub-goal from where the arm is, and counts the cap); ``collision``; or ``horizon``
+    when the episode ended. Only the last two end the trial."""
     command = 1.0 if suction else -1.0
     for step in range(max_steps):
         if np.linalg.norm(subgoal - env.eef_position()) < tolerance:
-            return step, True
+            return step, REACHED
         env.step(np.array([*ndp.act(env.lip_target_position(), subgoal), command]))
-        if env.collisions or env.done:
-            return step + 1, False
-    return max_steps, True
+        if env.collisions:
+            return step + 1, COLLISION
+        if env.done:
+            return step + 1, HORIZON
+    return max_steps, REACHED if np.linalg.norm(subgoal - env.eef_position()) < tolerance else CAPPED
 
 
 def plan(planner, x: np.ndarray, label: int, index: int, timings: list[float]) -> np.ndarray:
@@ -190,10 +212,10 @@ class TwoLevelMotion:
             feature = env.object_positions()[obj] if stage == PICK else env.box_position()
             subgoal = plan(self.planner, np.concatenate([feature, env.lip_target_position()]),
                            0 if stage == PICK else 1 + slot, i, out.planning_ms)
-            steps, fine = reach(env, self.ndp, subgoal, stage == PLACE or i > 0, self.max_steps, self.tolerance)
-            out.steps += steps
-            if not fine:
-                out.failure = "collision" if env.collisions else "horizon"
+            steps, status = reach(env, self.ndp, subgoal, stage == PLACE or i > 0, self.max_steps, self.tolerance)
+            out.count(steps, status)
+            if status in (COLLISION, HORIZON):
+                out.failure = status
                 return False
         if stage == PICK and env.suction.held != obj:
             out.failure = "pick"
@@ -255,10 +277,10 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
         for i in range(n_subgoals):
             subgoal = plan(planner, correction_input(objects, env.lip_target_position(), label, planner_input), label,
                            i, out.planning_ms)
-            steps, fine = reach(env, ndp, subgoal, stage == PLACE or i > 0, max_steps, tolerance)
-            out.steps += steps
-            if not fine:
-                out.failure = "collision" if env.collisions else "horizon"
+            steps, status = reach(env, ndp, subgoal, stage == PLACE or i > 0, max_steps, tolerance)
+            out.count(steps, status)
+            if status in (COLLISION, HORIZON):
+                out.failure = status
                 return out, env.object_positions()
         if stage == PICK:  # the picking stage ends at the top face: hold still one step with suction on
             top = env.object_positions()[obj] + np.array([0.0, 0.0, env.cell_objects[obj].half_size[2]])

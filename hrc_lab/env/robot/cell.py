@@ -5,7 +5,9 @@ the bottleneck without changing what the experiments measure), ``1 / (control_fr
 
 Action (thesis 3.3 and 4.3), one control step at ``control_freq`` Hz:
     ``[dq_base, dq_shoulder, dq_elbow, suction]`` (+ ``dq_wrist3`` before suction with ``yaw_action=True``), joint
-    deltas in radians clipped to +-``max_joint_step`` (5 deg); suction > 0 means on. Wrist 1 and wrist 2 are not
+    deltas in radians clipped to +-``max_joint_step`` (5 deg); suction > 0 means on: the cup grips a part whose top
+    face the lip touches when the command is applied (before the arm moves) and, with ``grip_after_step``, also
+    at the end of the step. Wrist 1 and wrist 2 are not
     actuated by the policy: they follow so that the tool keeps pointing down (wrist1 = -pi/2 - shoulder - elbow,
     wrist2 = -pi/2). The six joint targets go to robosuite's BASIC composite controller whose arm part is
     JOINT_POSITION (delta input, no scaling), i.e. the robot's own PD loop with gravity compensation.
@@ -87,6 +89,7 @@ class HRCCell(ManipulationEnv):
         max_joint_step: float = np.deg2rad(5.0),
         yaw_action: bool = False,
         disable_effector_on_collision: bool = False,
+        grip_after_step: bool = False,
         table_full_size: tuple[float, float, float] = (0.6, 1.0, 0.05),
         seed: int | None = None,
         has_offscreen_renderer: bool = False,
@@ -102,6 +105,8 @@ class HRCCell(ManipulationEnv):
         self.max_joint_step = max_joint_step
         self.yaw_action = yaw_action
         self.disable_effector_on_collision = disable_effector_on_collision
+        self.grip_after_step = grip_after_step
+        self._suction_on = False
         self.np_random = np.random.default_rng(seed)
         self.collisions: list[str] = []
         self.goals = np.zeros((len(objects), 3))
@@ -248,6 +253,7 @@ class HRCCell(ManipulationEnv):
         self.sim.data.qvel[:] = 0.0
         self._q_cmd = HOME_QPOS.copy()
         self.suction.reset()
+        self._suction_on = False
         self.collisions = []
         self._sample_scene()
         self.sim.forward()
@@ -311,7 +317,8 @@ class HRCCell(ManipulationEnv):
         action = np.asarray(action, dtype=float)
         if action.shape != (self.policy_action_dim,):
             raise ValueError(f"action must have shape ({self.policy_action_dim},), got {action.shape}")
-        self.suction.command(bool(action[-1] > 0))
+        self._suction_on = bool(action[-1] > 0)
+        self.suction.command(self._suction_on)
         self._step_collisions: list[str] = []
         self._q_cmd = self.joint_targets(action)
         low_level = self._q_cmd - self.arm_qpos()
@@ -328,6 +335,8 @@ class HRCCell(ManipulationEnv):
             self.collisions.extend(self._step_collisions)
             if self.disable_effector_on_collision:
                 self.suction.disable()
+        if self.grip_after_step and self._suction_on:
+            self.suction.command(True)  # a lip that reached a top face during the step grips now
         reward, done, info = super()._post_action(action)
         distances = self.goal_distances()
         info.update(

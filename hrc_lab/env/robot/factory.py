@@ -28,6 +28,7 @@ def cell_kwargs(sim: SimSettings) -> dict:
         "max_joint_step": np.deg2rad(sim.max_joint_step_deg),
         "yaw_action": sim.yaw_action,
         "disable_effector_on_collision": sim.disable_effector_on_collision,
+        "grip_after_step": sim.grip_after_step,
     }
 
 

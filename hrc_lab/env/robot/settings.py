@@ -28,6 +28,10 @@ class SimSettings:
     max_joint_step_deg: float = 5.0  # per-step joint delta limit (thesis 4.4.3: -5 ... 5 deg)
     yaw_action: bool = False  # add a wrist-3 delta to the action (DRL agent of 3.3)
     disable_effector_on_collision: bool = False  # DRL setting of 3.3
+    # the cup also grips at the end of a control step when suction is on and the lip touches a top face (issue 20);
+    # off: it grips only when the command is applied, before the arm moves (a lip that reaches the face during a
+    # step grips one step later)
+    grip_after_step: bool = False
     # CASE 1 / CASE 2 of the scenario. package_to_order: 1 robot alone, 2 a simulated human packs a random subset
     # first; error_correction one_object: 1 blue wrong, 2 red wrong; two_object: 1 blue on red's place, 2 red on blue's
     case: int = 1
