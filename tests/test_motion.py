@@ -306,3 +306,28 @@ def test_rollouts_count_capped_subgoals():
     trials = pd.DataFrame({"subgoals": [4, 6], "capped": [2, 1]})
     assert capped_share(trials) == 0.3
     assert math.isnan(capped_share(pd.DataFrame({"subgoals": [0], "capped": [0]})))
+
+
+def test_correction_demos_records_until_n_are_kept(monkeypatch):
+    """Every other episode fails (as action noise can make it): recording goes on until n are kept, and stops
+    at MAX_ATTEMPTS_PER_DEMO * n when too few succeed."""
+    from types import SimpleNamespace
+
+    import hrc_lab.data.segmentation as segmentation
+    import hrc_lab.env.robot.expert as expert
+    import hrc_lab.experiments.collect as collect
+    from hrc_lab.experiments.ch3_motion import MAX_ATTEMPTS_PER_DEMO, correction_demos
+
+    def demos_with(success_every: int) -> tuple[int, int]:
+        episodes = iter(range(1000))
+        monkeypatch.setattr(collect, "record_episode", lambda env, *a: SimpleNamespace(
+            success=next(episodes) % success_every == 0))
+        kept = correction_demos(env, 5, protocol, "test")
+        return len(kept), next(episodes)  # kept, episodes recorded (the next episode's number)
+
+    env = SimpleNamespace(stage_label=None, expert_plan=lambda: [1])
+    protocol = SimpleNamespace(subgoals_per_stage=5, segmentation_penalty=0.0)
+    monkeypatch.setattr(expert, "ScriptedExpert", lambda *a, **k: None)
+    monkeypatch.setattr(segmentation, "stage_subgoals", lambda *a, **k: ([(0, 1), (1, 2)], []))
+    assert demos_with(2) == (5, 9)  # episodes 0, 2, 4, 6, 8 kept: 9 recorded
+    assert demos_with(100) == (1, MAX_ATTEMPTS_PER_DEMO * 5)

@@ -12,6 +12,7 @@ from hrc_lab.experiments.context import RunContext
 from hrc_lab.motion import MOTIONS
 
 COLOURS = {1: "blue", 2: "red"}
+MAX_ATTEMPTS_PER_DEMO = 3
 
 
 def correction_demos(env, n: int, protocol, desc: str, placement_noise: float = 0.0,
@@ -20,18 +21,23 @@ def correction_demos(env, n: int, protocol, desc: str, placement_noise: float = 
     """Expert demonstrations with their change-point stages and ``protocol.subgoals_per_stage`` re-sampled
     sub-goals per stage (3.3); the expert aims its placements with ``placement_noise`` (m) drawn from ``rng``, and
     its executed joint deltas carry ``action_noise`` (rad, DART) drawn from ``action_rng``.
-    Kept: the successful demonstrations whose segmentation found a picking and a placing stage per moved object."""
+    Kept: the successful demonstrations whose segmentation found a picking and a placing stage per moved object;
+    episodes are recorded until ``n`` are kept or ``MAX_ATTEMPTS_PER_DEMO * n`` were tried (noise can spoil one)."""
     from hrc_lab.data.segmentation import stage_subgoals
     from hrc_lab.env.robot.expert import ScriptedExpert
     from hrc_lab.experiments.collect import record_episode
 
     expert, demos = ScriptedExpert(env, placement_noise=placement_noise, rng=rng), []
-    for _ in tqdm(range(n), desc=desc, unit="demo"):
-        demo = record_episode(env, expert, action_noise, action_rng)
-        demo.stage_bounds, demo.stage_subgoals = stage_subgoals(
-            demo, env.stage_label, protocol.subgoals_per_stage, "resample", protocol.segmentation_penalty)
-        if demo.success and len(demo.stage_bounds) == 2 * len(env.expert_plan()):
-            demos.append(demo)
+    with tqdm(total=n, desc=desc, unit="demo") as progress:
+        for _ in range(MAX_ATTEMPTS_PER_DEMO * n):
+            demo = record_episode(env, expert, action_noise, action_rng)
+            demo.stage_bounds, demo.stage_subgoals = stage_subgoals(
+                demo, env.stage_label, protocol.subgoals_per_stage, "resample", protocol.segmentation_penalty)
+            if demo.success and len(demo.stage_bounds) == 2 * len(env.expert_plan()):
+                demos.append(demo)
+                progress.update()
+                if len(demos) == n:
+                    break
     return demos
 
 
