@@ -306,11 +306,17 @@ def test_table_6_1_section_decomposes_the_object_accuracy():
     assert "Where the object accuracy is lost" not in older.markdown and "lie within" not in older.markdown
 
 
-def test_table_6_2_section_gives_the_failure_causes():
+def test_table_6_2_section_gives_the_failure_causes_and_answer_lengths(monkeypatch):
+    from hrc_lab.report import ch6_grasp
+
     load_sections()
     runs = pd.DataFrame({"method": ["gnn_att"] * 2, "seed": [0, 1], "cell": ["clutter"] * 2, "run_id": ["r0", "r1"],
                          "acc_3": [0.7, 0.8], "fail_detection_3": [0.1, 0.0], "fail_graspability_3": [0.2, 0.1],
                          "fail_solution_3": [0.0, 0.1], "fail_other_3": [0.0, 0.0]})
+    cases = pd.DataFrame({"objects": [3, 3, 3, 3], "correct": [True, True, False, True], "iterations": [1, 1, 2, 1],
+                          "help": [False, False, False, True], "rule_requests": [1, 2, 2, 1]})
+    monkeypatch.setattr(ch6_grasp, "run_tables", lambda runs, name: cases if name == "table_6_2_single" else None)
     markdown = SECTIONS["table_6_2_single"](runs).markdown
     assert "| graspability    | 0.150 ± 0.050" in markdown
+    assert re.search(r"\|\s+3 \|\s+4 \|\s+1.25 \|\s+0.75 \|\s+0.25 \|\s+1.5 \|\s+0.5 \|", markdown)
     assert "Why answers are wrong" not in SECTIONS["table_6_2_single"](runs.drop(columns="fail_detection_3")).markdown

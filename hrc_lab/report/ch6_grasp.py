@@ -13,7 +13,7 @@ import pandas as pd  # noqa: E402
 
 from hrc_lab.grasp.diagnostics import FAILURE_CAUSES  # noqa: E402
 from hrc_lab.report.ch3_rl import histories  # noqa: E402
-from hrc_lab.report.runs import setting, setting_number, spread  # noqa: E402
+from hrc_lab.report.runs import run_tables, setting, setting_number, spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
 
@@ -124,7 +124,8 @@ def _geometry(runs: pd.DataFrame, text: dict) -> list[str]:
         f"{one.geometry_pairs_within_filter:.0%} lie within it (median {one.geometry_pair_distance_median:.3f}), "
         f"and a part has {one.geometry_neighbours_within_filter:.2f} neighbours within it on average. Eq. 6.1 "
         f"gives a blocker {one.geometry_blocker_weight_ratio:.2f}× the uniform weight 1/(n−1) on average. The "
-        f"thesis' Fig. 6.3 shows touching a-b pairs {low} and {high} apart.",
+        f"thesis' Fig. 6.3 shows touching a-b pairs {low:.2f} and {high:.2f} apart. geometry.png shows the "
+        "distances of the blocking pairs beside those of all pairs.",
         "",
     ]
 
@@ -198,7 +199,7 @@ def table_6_2_single(runs: pd.DataFrame) -> Section:
         "",
         pd.DataFrame(rows).to_markdown(index=False),
     ]
-    text += _failures(runs[runs.method == "gnn_att"], counts)
+    text += _failures(runs[runs.method == "gnn_att"], counts) + _answer_lengths(runs[runs.method == "gnn_att"])
     ours = runs[runs.method == "gnn_att"]
     artifacts = {}
     if len(ours) and "examples_logged" in ours:
@@ -229,3 +230,21 @@ def _failures(runs: pd.DataFrame, counts: list[int]) -> list[str]:
         "",
         pd.DataFrame(rows).to_markdown(index=False),
     ]
+
+
+def _answer_lengths(runs: pd.DataFrame) -> list[str]:
+    """How many requests Algorithm 4 made per answer, per part count, from the runs' ``table_6_2_single`` tables."""
+    cases = run_tables(runs, "table_6_2_single")
+    if cases.empty:
+        return []
+    columns = {"cases (all seeds)": ("correct", "size"), "solver: requests per answer": ("iterations", "mean"),
+               "solver: answered at the first request": ("iterations", lambda n: (n == 1).mean()),
+               "solver: help": ("help", "mean")}
+    if "rule_requests" in cases:  # runs older than the rule's chain length lack it
+        columns |= {"rule: requests needed": ("rule_requests", "mean"),
+                    "rule: one request is enough": ("rule_requests", lambda n: (n == 1).mean())}
+    lengths = cases.groupby("objects").agg(**columns)
+    return ["", "How long the answers are (GNN_Att, all seeds; the rule's own Algorithm 4 from the goal part that "
+                "needs the fewest requests): where one request is enough, the case scores the solver's first "
+                "graspability check, whatever the part count.", "",
+            lengths.round(3).reset_index().to_markdown(index=False)]
