@@ -320,3 +320,15 @@ def test_table_6_2_section_gives_the_failure_causes_and_answer_lengths(monkeypat
     assert "| graspability    | 0.150 ± 0.050" in markdown
     assert re.search(r"\|\s+3 \|\s+4 \|\s+1.25 \|\s+0.75 \|\s+0.25 \|\s+1.5 \|\s+0.5 \|", markdown)
     assert "Why answers are wrong" not in SECTIONS["table_6_2_single"](runs.drop(columns="fail_detection_3")).markdown
+
+
+def test_placement_oracle_section_reads_the_second_objects():
+    load_sections()
+    runs = pd.DataFrame({"method": ["tc_vi"] * 2, "seed": [0, 1], "cell": ["error_correction"] * 2,
+                         "scenario": ["two_object_case2"] * 2, "run_id": ["r0", "r1"],
+                         "param.protocol.placement_oracle": ["True"] * 2, "sr_red_0.08": [0.8, 0.7],
+                         "sr_blue_0.08": [0.4, 0.42], "sr_red_0.06": [0.8, 0.7], "sr_blue_0.06": [0.4, 0.42],
+                         "stage2_right": [1.0, 1.0]})
+    markdown = SECTIONS["table_3_1"](runs).markdown
+    assert "two object case2: second object (blue) SR 0.41 ± 0.01 at δr 0.08, c(x) right at 1.00" in markdown
+    assert "outside what c(x) and the planner were trained on" in markdown
