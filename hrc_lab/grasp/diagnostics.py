@@ -3,8 +3,8 @@
 - :func:`scene_geometry`: how dense the scenes are in the units of Eq. 6.1 and of GNN_DF_Att's distance filter
   (image-normalised box-centre distance, 0.16): the distance of every part pair, and of the pairs the labelling rule
   links (a blocker and the part it blocks), the neighbours each part has within the filter, and the Eq. 6.1 weight a
-  blocker receives. When every blocker lies within the filter, the filter keeps every edge the solution needs, and
-  weighted edges (Eq. 6.1) have nothing to add over it.
+  blocker receives: which share of the edges a solution depends on the filter keeps, and how much more weight Eq. 6.1
+  gives them than an unweighted mean would.
 - :func:`failure_cause`: why one Algorithm 4 answer on a single image is wrong (Table 6.2), in the order the
   pipeline meets them: a detection error on a part the answer depends on, a wrong graspability at a request, a
   decoded solution that differs from the rule's, or none of these (the nearest-part resolution or the iteration
