@@ -12,20 +12,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.report.runs import PARAM_PREFIX, amount, run_clients, spread  # noqa: E402
+from hrc_lab.report.runs import PARAM_PREFIX, amount, histories, spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
 
 ARMS = {"0": "pure exploration (λ = 0)", "0.7": "hybrid (λ = 0.7)", "1": "full guidance (λ = 1)"}
-
-
-def histories(runs: pd.DataFrame, metric: str) -> pd.DataFrame:
-    """Every run's history of ``metric``: columns run_id, step, value (empty when none was logged)."""
-    rows = []
-    for run_id, client in run_clients(runs):
-        history = client.get_metric_history(run_id, metric)
-        rows += [{"run_id": run_id, "step": m.step, "value": m.value} for m in history]
-    return pd.DataFrame(rows, columns=["run_id", "step", "value"])
 
 
 def lam_of(runs: pd.DataFrame) -> pd.Series:

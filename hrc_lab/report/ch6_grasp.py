@@ -12,8 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from hrc_lab.grasp.diagnostics import FAILURE_CAUSES  # noqa: E402
-from hrc_lab.report.ch3_rl import histories  # noqa: E402
-from hrc_lab.report.runs import run_tables, setting, setting_number, spread  # noqa: E402
+from hrc_lab.report.runs import histories, run_tables, setting, setting_number, spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
 

@@ -159,6 +159,15 @@ def run_clients(runs: pd.DataFrame):
         yield run_id, MlflowClient(resolve_tracking_uri(uri))
 
 
+def histories(runs: pd.DataFrame, metric: str) -> pd.DataFrame:
+    """Every run's history of ``metric``: columns run_id, step, value (empty when none was logged)."""
+    rows = []
+    for run_id, client in run_clients(runs):
+        history = client.get_metric_history(run_id, metric)
+        rows += [{"run_id": run_id, "step": m.step, "value": m.value} for m in history]
+    return pd.DataFrame(rows, columns=["run_id", "step", "value"])
+
+
 def run_tables(runs: pd.DataFrame, name: str) -> pd.DataFrame:
     """The table every run logged as ``tables/<name>.csv`` (``RunTracker.log_table``), concatenated with a
     ``run_id`` column; runs that logged none are left out (all of them when the runs' tracking URI is not
