@@ -211,6 +211,21 @@ def test_label_per_subgoal_separates_sub_goals_that_share_an_observation():
         planner.predict(x[:1], labels[:1], np.array([3]))
 
 
+def test_relative_to_r_feeds_every_position_minus_r(compose_config):
+    from hrc_lab.config import validate_config
+
+    rng = np.random.default_rng(0)
+    part, green, r = rng.uniform(-0.2, 0.2, (4, 3)), rng.uniform(-0.2, 0.2, (4, 3)), rng.uniform(0, 1, (4, 3))
+    relative = build_subgoal_planner(SubgoalConfig(relative_to_r=True), 1)
+    assert np.allclose(relative._features(np.hstack([part, green, r])), np.hstack([part - r, green - r, r]))
+    assert np.array_equal(build_subgoal_planner(SubgoalConfig(), 1)._features(np.hstack([part, r])),
+                          np.hstack([part, r]))  # the default: absolute positions
+    with pytest.raises(ValueError, match="relative_to_r needs x"):
+        relative._features(np.zeros((1, 5)))
+    cfg = compose_config("experiment=ch3/table_3_1", "protocol.planner_input=selected", "motion.relative_to_r=true")
+    assert validate_config(cfg).motion.relative_to_r
+
+
 def test_correction_pairs_start_each_stage_as_demonstrated_and_as_executed():
     """A picking stage (steps 0-3) then a placing stage (steps 4-8) of object 1 (blue), two sub-goals each."""
     from types import SimpleNamespace

@@ -58,6 +58,10 @@ class SubgoalConfig:
     # it proposes rather than inferring its progress through the stage from r. Not in the thesis; without it our
     # closed-loop picking sub-goals drift ~1-2 cm above the part (errors in r compound along a stage).
     label_per_subgoal: bool = False
+    # Every position before r enters relative to r (x_i - r), r itself absolute, as the issue-20 ablation of the
+    # planner's input asks ("the requested part's position relative to r"); the jitter of r moves them with it.
+    # Not in the thesis.
+    relative_to_r: bool = False
     ndp: NDPConfig = field(default_factory=NDPConfig)
 
     def __post_init__(self) -> None:

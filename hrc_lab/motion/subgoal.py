@@ -63,8 +63,17 @@ class SubgoalPlanner:
             raise ValueError(f"sub-goal indices must be in [0, {self.n_subgoals}), got {np.unique(indices)}")
         return np.eye(self.n_labels * self.n_subgoals)[labels * self.n_subgoals + indices]
 
+    def _features(self, x: np.ndarray) -> np.ndarray:
+        """x as the regressor reads it: with ``relative_to_r`` every 3-vector before r (the last three) minus r."""
+        if not self.config.relative_to_r:
+            return x
+        if (x.shape[1] - 3) % 3:
+            raise ValueError(f"motion.relative_to_r needs x = [3-vectors..., r], got {x.shape[1]} columns")
+        r = x[:, -3:]
+        return np.hstack([x[:, :-3] - np.tile(r, (x.shape[1] - 3) // 3), r])
+
     def _inputs(self, x: np.ndarray, labels: np.ndarray, indices: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        return self.x_scale(x), self._onehot(labels, indices)
+        return self.x_scale(self._features(x)), self._onehot(labels, indices)
 
     def fit(self, x: np.ndarray, labels: np.ndarray, subgoals: np.ndarray,
             trainer_factory: Callable | None = None, indices: np.ndarray | None = None) -> SubgoalPlanner:
@@ -73,7 +82,7 @@ class SubgoalPlanner:
         n = len(x)
         x, labels, subgoals = jitter_r(x, labels, subgoals, cfg.r_jitter_m, cfg.r_jitter_copies, self.seed)
         indices = None if indices is None else np.tile(indices, len(x) // n)
-        self.x_scale, self.s_scale = Standardiser(x), Standardiser(subgoals)
+        self.x_scale, self.s_scale = Standardiser(self._features(x)), Standardiser(subgoals)
         xs, onehot = self._inputs(x, labels, indices)
         target = self.s_scale(subgoals)
         if cfg.kind == "gpr":
