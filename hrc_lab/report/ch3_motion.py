@@ -182,7 +182,8 @@ def fig_3_10(runs: pd.DataFrame) -> Section:
 def _oracle_reading(runs: pd.DataFrame) -> str:
     """What the placement oracle shows about the second objects: their SR and c(x)'s stage-2 choice, here, where
     every demonstration's second stage also started (the first part exactly on its goal)."""
-    second = {"two_object_case1": "red", "two_object_case2": "blue"}
+    # each two-object case lists its objects in the order they are moved: the last one kept is the second
+    second = {scenario: colour for scenario, colour, _ in ROWS if scenario.startswith("two_object")}
     parts = []
     for scenario, colour in second.items():
         part = runs[runs.scenario == scenario]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from hrc_lab.report.ch4_reasoning import conditions_paragraph
+from hrc_lab.report.ch4_conditions import conditions_paragraph
 from hrc_lab.report.plots import success_bars
 from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting
 from hrc_lab.report.sections import Section, register_section

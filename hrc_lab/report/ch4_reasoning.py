@@ -9,6 +9,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from hrc_lab.report.ch4_conditions import conditions_paragraph  # noqa: E402
 from hrc_lab.report.plots import success_bars  # noqa: E402
 from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
@@ -80,28 +81,6 @@ def table_4_1(runs: pd.DataFrame) -> Section:
         {"table_4_1.png": success_bars(pd.DataFrame(csv), cells, methods, LABELS, "Table 4.1",
                                        thesis_col="thesis_mean")},
     )
-
-
-def conditions_paragraph(runs: pd.DataFrame, goals: str) -> list[str]:
-    """Sec. 4.4.3's ranges beside the ones these runs covered (largest over cells and seeds; runs log
-    ``pick_span_*``, ``goal_span_*``, ``object_goal_*``), then ``goals``: why goal positions vary as they do."""
-    runs = runs.dropna(subset=["pick_span_x_m"]) if "pick_span_x_m" in runs else runs.iloc[:0]
-    if runs.empty:  # runs older than the spans
-        return []
-    ref = thesis_results()["ch4"]["text"]
-    span = runs[["pick_span_x_m", "pick_span_y_m", "goal_span_x_m", "goal_span_y_m"]].max()
-    low, high = runs["object_goal_min_m"].min(), runs["object_goal_max_m"].max()
-    pick, goal, dist = ref["position_variation_pick_m"], ref["position_variation_goal_m"], ref["object_goal_distance_m"]
-    return [
-        "",
-        f"Test conditions (Sec. 4.4.3's ranges in brackets): picking positions span {span.pick_span_x_m:.2f} m in x "
-        f"and {span.pick_span_y_m:.2f} m in y ({pick['x']} × {pick['y']}); goal positions {span.goal_span_x_m:.2f} × "
-        f"{span.goal_span_y_m:.2f} m ({goal['x']} × {goal['y']}); object-goal distances {low:.2f}–{high:.2f} m "
-        f"({dist[0]}–{dist[1]}). The picking span is the pending area's, one cell of "
-        f"{keyed(runs, 'env.pending_spacing', 'm')} per product (fewer products, a shorter area); goal positions "
-        f"vary with the box (box jitter ± {setting(runs, 'env.box_jitter.0')} × ± {setting(runs, 'env.box_jitter.1')} "
-        f"m, `env.box_jitter`): {goals}",
-    ]
 
 
 def _lambda_columns(runs: pd.DataFrame, case: str) -> dict[float, str]:
