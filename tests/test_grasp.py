@@ -1,6 +1,8 @@
 """Ch.6 solver: Eq. 6.1 edge weights on known points, graph features, the solution decoder on a tiny task, and one
 Algorithm 4 iteration."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -259,6 +261,19 @@ def test_learning_rate_schedules():
         GraspSolverConfig(schedule="linear")
     with pytest.raises(ValueError, match="grasp.warmup_steps must be >= 0"):
         GraspSolverConfig(warmup_steps=-1)
+    cosine = SupervisedModule(network, lambda net, batch: (net(batch).sum(), {}), 0.1, schedule="cosine",
+                              warmup_steps=2)
+    cosine._trainer = SimpleNamespace(estimated_stepping_batches=10)  # a fit of 10 steps
+    configured = cosine.configure_optimizers()
+    optimizer, scheduler = configured["optimizer"], configured["lr_scheduler"]["scheduler"]
+    rates = []
+    for _ in range(10):
+        rates.append(scheduler.get_last_lr()[0])
+        optimizer.step()
+        scheduler.step()
+    assert rates[:3] == pytest.approx([0.05, 0.1, 0.1])  # linear warm-up over 2 steps, then the cosine from lr
+    assert rates[6] == pytest.approx(0.05 * (1 + np.cos(np.pi * 4 / 8)))
+    assert rates == sorted(rates[:2]) + sorted(rates[2:], reverse=True) and scheduler.get_last_lr()[0] < 0.01
 
 
 TINY_CH6 = ["hydra.mode=RUN", "trainer.max_epochs=1", "grasp.steps=2", "grasp.detector.steps=2",
