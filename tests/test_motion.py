@@ -211,6 +211,28 @@ def test_label_per_subgoal_separates_sub_goals_that_share_an_observation():
         planner.predict(x[:1], labels[:1], np.array([3]))
 
 
+def test_gpr_kernel_ard_ignores_an_input_the_sub_goal_does_not_depend_on():
+    """Sub-goals depend (non-linearly) on the object alone; at test r lies 6 training stds away. ARD length scales
+    extrapolate over r, one isotropic length scale (the other reading of the thesis' "RBF kernel") is as short as
+    the object needs and falls back to the mean."""
+    rng = np.random.default_rng(0)
+    objects = rng.uniform(-0.2, 0.2, (100, 3))
+    r = 0.5 + rng.normal(0.0, 0.01, (100, 3))
+    def subgoal(part):
+        return 0.1 * np.sin(10 * part)
+
+    subgoals = subgoal(objects)
+    test_objects = rng.uniform(-0.15, 0.15, (10, 3))
+    test_x = np.hstack([test_objects, np.full((10, 3), 0.56)])
+    errors = {}
+    for kernel in ("ard", "isotropic"):
+        config = SubgoalConfig(kind="gpr", gpr_kernel=kernel, r_jitter_m=0.0)
+        planner = build_subgoal_planner(config, 1).fit(np.hstack([objects, r]), np.zeros(100, dtype=int), subgoals)
+        mean, _ = planner.predict(test_x, np.zeros(10, dtype=int))
+        errors[kernel] = np.linalg.norm(mean - subgoal(test_objects), axis=1).max()
+    assert errors["ard"] < 0.01 < 0.05 < errors["isotropic"]
+
+
 def test_relative_to_r_feeds_every_position_minus_r(compose_config):
     from hrc_lab.config import validate_config
 

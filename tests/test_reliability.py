@@ -41,6 +41,7 @@ from hrc_lab.training import FixedStepDataModule, RandomState, RunCheckpoint, Su
         ("ch5/fig_5_7", "reasoning.word_dim=0", "reasoning.word_dim"),
         ("ch4/table_4_2", "motion.ndp.mode=jump", "motion.ndp.mode"),
         ("ch4/table_4_2", "motion.kind=svm", "motion.kind"),
+        ("ch4/table_4_2", "motion=gpr motion.gpr_kernel=matern", "motion.gpr_kernel"),
         ("ch5/fig_5_6", "perception.batch_size=0", "perception.batch_size"),
         ("ch6/table_6_1", "grasp.lr=-1", "grasp.lr"),
         ("ch4/table_4_1", "protocol.min_demos=2", "protocol.min_demos"),

@@ -15,6 +15,8 @@ STAGE_STARTS = ("demonstrated", "executed")
 STAGE_LABELS = ("classifier", "ground_truth")
 # What the Ch.3 sub-goal planner observes besides r (hrc_lab.motion.two_level.correction_input)
 PLANNER_INPUTS = ("full", "selected")
+# The GPR baseline's RBF length scales (hrc_lab.motion.configs.SubgoalConfig.gpr_kernel)
+GPR_KERNELS = ("ard", "isotropic")
 
 
 @dataclass
@@ -49,6 +51,10 @@ class SubgoalConfig:
     kl_weight: float = 1e-3  # weight of D_kl[q(z) || N(0, 1)] (Eq. 3.3) on standardised sub-goals; not in the thesis
     likelihood_std: float = 0.1  # std of p(s | z) in standardised units (Eq. 3.4)
     gpr_max_points: int = 1500  # GPR is O(n^3): fit on a random subset of this size
+    # The GPR's RBF kernel: ``ard``, one length scale per input (fitted), so an input the sub-goal does not depend on
+    # gets a long one; ``isotropic``, one length scale for all inputs (scikit-learn's ``RBF()``), which the thesis'
+    # "a Radial Basis Function (RBF) kernel" also reads as.
+    gpr_kernel: str = "ard"
     # Training-set jitter of r (the last 3 inputs): ``r_jitter_copies`` noisy copies of every pair with N(0,
     # ``r_jitter_m``^2) on r. In closed loop a sub-goal is planned from wherever the dynamic planner stopped (within
     # the reach tolerance), not from the expert's exact pose; without it the planner is off by ~1 cm there.
@@ -67,6 +73,8 @@ class SubgoalConfig:
     def __post_init__(self) -> None:
         if self.kind not in ("vi", "mlp", "gpr"):
             raise ValueError(f"motion.kind must be 'vi', 'mlp' or 'gpr', got '{self.kind}'")
+        if self.gpr_kernel not in GPR_KERNELS:
+            raise ValueError(f"motion.gpr_kernel must be one of {list(GPR_KERNELS)}, got '{self.gpr_kernel}'")
         for key in ("hidden", "lr", "steps", "batch_size", "likelihood_std", "gpr_max_points"):
             if getattr(self, key) <= 0:
                 raise ValueError(f"motion.{key} must be > 0, got {getattr(self, key)}")

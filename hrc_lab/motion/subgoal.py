@@ -92,7 +92,8 @@ class SubgoalPlanner:
             rng = np.random.default_rng(self.seed)
             keep = rng.permutation(len(xs))[: cfg.gpr_max_points]
             features = np.hstack([xs, onehot]) if cfg.use_labels else xs
-            kernel = ConstantKernel() * RBF(length_scale=np.ones(features.shape[1])) + WhiteKernel(1e-3)
+            length_scale = np.ones(features.shape[1]) if cfg.gpr_kernel == "ard" else 1.0
+            kernel = ConstantKernel() * RBF(length_scale=length_scale) + WhiteKernel(1e-3)
             self.gpr = GaussianProcessRegressor(kernel, normalize_y=False, random_state=self.seed)
             self.gpr.fit(features[keep], target[keep])
             return self
