@@ -7,6 +7,7 @@ import fcntl
 import hashlib
 import json
 import os
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -18,9 +19,9 @@ def cache_key(settings: Any, length: int = 12) -> str:
 
 
 def cached(path: Path, build: Callable[[Path], object]) -> Path:
-    """Build ``path`` once and return it. Parallel jobs wait on a file lock for the first one; ``build`` writes a
-    partial file that is renamed into place when complete, so a job killed mid-build leaves no file behind that
-    a later job would take for a finished one."""
+    """Build ``path`` (a file, or a directory ``build`` fills) once and return it. Parallel jobs wait on a file lock
+    for the first one; ``build`` writes a partial file or directory that is renamed into place when complete, so a
+    job killed mid-build leaves nothing behind that a later job would take for a finished one."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path.with_suffix(".lock"), "w") as lock:
@@ -31,5 +32,8 @@ def cached(path: Path, build: Callable[[Path], object]) -> Path:
                 build(partial)
                 os.replace(partial, path)
             finally:
-                partial.unlink(missing_ok=True)
+                if partial.is_dir():
+                    shutil.rmtree(partial)
+                else:
+                    partial.unlink(missing_ok=True)
     return path

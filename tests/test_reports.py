@@ -322,6 +322,19 @@ def test_table_6_2_section_gives_the_failure_causes_and_answer_lengths(monkeypat
     assert "Why answers are wrong" not in SECTIONS["table_6_2_single"](runs.drop(columns="fail_detection_3")).markdown
 
 
+def test_table_6_3_section_says_whose_data_it_read():
+    load_sections()
+    runs = pd.DataFrame({"method": ["gnn_att", "gnn_att", "gvmrn_rf"], "seed": [0, 1, 0], "cell": ["clutter"] * 3,
+                         "run_id": ["r0", "r1", "r2"], "ia": [0.5, 0.6, 0.3], "ia_3": [0.7, 0.8, 0.4],
+                         "oa": [0.8, 0.9, 0.6], "written_by_hrc_lab": [1.0] * 3,
+                         "param.protocol.train_images": ["427"] * 3, "param.protocol.test_images": ["50"] * 3})
+    markdown = SECTIONS["table_6_3"](runs).markdown
+    assert re.search(r"\| GNN_Att \(ours\) \| 0.550 ± 0.050 \|\s+0.62\s+\| 0.750 ± 0.050\s+\| 0.850 ± 0.050", markdown)
+    assert "our 427 trainval and 50 test rendered clutter scenes" in markdown and "not comparable" in markdown
+    theirs = SECTIONS["table_6_3"](runs.assign(written_by_hrc_lab=0.0, **{"param.env.vmrd_root": "/data/VMRD"}))
+    assert "the data set at `/data/VMRD`" in theirs.markdown
+
+
 def test_placement_oracle_section_reads_the_second_objects():
     load_sections()
     runs = pd.DataFrame({"method": ["tc_vi"] * 2, "seed": [0, 1], "cell": ["error_correction"] * 2,

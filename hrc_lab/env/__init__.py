@@ -13,7 +13,7 @@ OpenCV) are imported on demand.
 """
 
 from hrc_lab.env.assembly.spec import AssembleToOrderSpec
-from hrc_lab.env.clutter.spec import ClutterSpec
+from hrc_lab.env.clutter.spec import ClutterSpec, VmrdSpec
 from hrc_lab.env.robot.settings import (
     AssembleToOrderConfig,
     ErrorCorrectionConfig,
@@ -30,6 +30,7 @@ ENVS.register("package_to_order", PackageToOrderConfig, "hrc_lab.env.robot.facto
 ENVS.register("error_correction", ErrorCorrectionConfig, "hrc_lab.env.robot.factory:make_env")
 ENVS.register("assemble_to_order", AssembleToOrderConfig, "hrc_lab.env.robot.factory:make_env")
 ENVS.register("clutter", ClutterSpec)
+ENVS.register("vmrd", VmrdSpec)  # Table 6.3: a data set in VMRD v2's layout, or the clutter scenes written in it
 
 __all__ = [
     "ENVS",
@@ -40,4 +41,5 @@ __all__ = [
     "PackageToOrderConfig",
     "PackageToOrderSpec",
     "SimSettings",
+    "VmrdSpec",
 ]

@@ -1,5 +1,6 @@
-"""Ch.6 protocols (Sec. 6.4.1): Table 6.1 (object accuracy for 1-3 requested types) and the single-image row of
-Table 6.2 (Algorithm 4 on scenes of 3-6 parts). One job = (method, seed).
+"""Ch.6 protocols (Sec. 6.4): Table 6.1 (object accuracy for 1-3 requested types), the single-image row of Table 6.2
+(Algorithm 4 on scenes of 3-6 parts) and Table 6.3 (image-based accuracy on a data set in VMRD's layout). One job =
+(method, seed).
 
 Rendered scenes and the trained detector depend on ``protocol.data_seed`` only and are cached under
 ``<paths.runs_dir>/cache/ch6`` (a file lock lets parallel sweep jobs share them), so every method and seed of a sweep
@@ -57,17 +58,17 @@ def random_request(rng: np.random.Generator, types: list[str], k: int | None = N
 
 
 def part_outcomes(solver: GraspSolver, nodes: list[SceneNodes], requests: list[set[str] | None]) -> pd.DataFrame:
-    """One row per requested part: its type, whether it was detected, whether its graspability is right and whether
-    it counts for the object accuracy (6.4.1: detected, graspability right and, when it is not graspable, the
-    decoded solution right)."""
+    """One row per requested part: its scene (index into ``nodes``), its type, whether it was detected, whether its
+    graspability is right and whether it counts for the object accuracy (6.4.1: detected, graspability right and,
+    when it is not graspable, the decoded solution right)."""
     graphs, kept = [], []
-    for n, request in zip(nodes, requests):
+    for k, (n, request) in enumerate(zip(nodes, requests)):
         if request is not None:
             graphs.append(solver.graph(n, n.requested(request)))
-            kept.append((n, request))
+            kept.append((k, n, request))
     readings = solver.read(graphs) if graphs else []
     rows = []
-    for (n, request), reading in zip(kept, readings):
+    for (k, n, request), reading in zip(kept, readings):
         node_of = {int(p): i for i, p in enumerate(n.truth) if p >= 0}
         for part, obj in enumerate(n.scene.objects):
             if obj.type not in request:
@@ -76,8 +77,9 @@ def part_outcomes(solver: GraspSolver, nodes: list[SceneNodes], requests: list[s
             truth_grasp = bool(n.rule_graspable[part])
             grasp_ok = node is not None and reading[node].graspable == truth_grasp
             correct = grasp_ok and (truth_grasp or reading[node].solution == n.rule_solution[part])
-            rows.append({"type": obj.type, "detected": node is not None, "grasp_ok": grasp_ok, "correct": correct})
-    return pd.DataFrame(rows, columns=["type", "detected", "grasp_ok", "correct"])
+            rows.append({"scene": k, "type": obj.type, "detected": node is not None, "grasp_ok": grasp_ok,
+                         "correct": correct})
+    return pd.DataFrame(rows, columns=["scene", "type", "detected", "grasp_ok", "correct"])
 
 
 def object_accuracy(outcomes: pd.DataFrame) -> dict[str, float]:
@@ -115,14 +117,17 @@ def iterative_correct(spec: ClutterSpec, nodes: SceneNodes, goal_type: str, answ
     return answer.grasp is not None and int(nodes.truth[answer.grasp]) in allowed
 
 
-def prepare(ctx: RunContext):
+def prepare(ctx: RunContext, train: list[ClutterScene] | None = None,
+            train_blockers: list[list[list[int]]] | None = None):
+    """The detector and the solver trained on ``train`` (default: the protocol's rendered training scenes, labelled
+    by the rule; else a data set's scenes with their ``train_blockers``, :func:`scene_nodes`)."""
     spec, protocol, cfg = ctx.cfg.env, ctx.cfg.protocol, ctx.cfg.grasp
-    train = scene_set(ctx, spec, TRAIN, protocol.train_images)
+    train = scene_set(ctx, spec, TRAIN, protocol.train_images) if train is None else train
     start = time.perf_counter()
     detector, info = detector_for(ctx, train)
     ctx.tracker.log_metrics({f"detector_{k}": float(v) for k, v in info.items() if isinstance(v, int | float)})
     solver = GRASPS.build(cfg, spec=spec, seed=ctx.seed)
-    train_nodes = scene_nodes(spec, train, detector, cfg.detector, solver.needs_union_features)
+    train_nodes = scene_nodes(spec, train, detector, cfg.detector, solver.needs_union_features, train_blockers)
     rng = ctx.rng(61)
     requests = [random_request(rng, n.labels or n.scene.types) for n in train_nodes]
     graphs = [solver.training_graph(n, r) for n, r in zip(train_nodes, requests) if r]
@@ -210,6 +215,75 @@ def table_6_2_single(ctx: RunContext) -> dict[str, float]:
     if examples:
         ctx.tracker.log_figure(example_figure(examples), "figures/examples.png")
         metrics["examples_logged"] = float(len(examples))
+    return metrics
+
+
+def vmrd_root(ctx: RunContext) -> Path:
+    """``env.vmrd_root``, or the protocol's rendered scenes written in VMRD's layout (their rule blockers as each
+    part's children) under ``<paths.runs_dir>/cache/ch6/vmrd_<key>``, once for every job."""
+    from hrc_lab.data.vmrd import write_vmrd
+    from hrc_lab.env.clutter.rule import blockers
+
+    if ctx.cfg.env.vmrd_root is not None:
+        return Path(ctx.cfg.env.vmrd_root)
+    spec, protocol = ctx.cfg.env.clutter(), ctx.cfg.protocol
+    splits = {"trainval": scene_set(ctx, spec, TRAIN, protocol.train_images),
+              "test": scene_set(ctx, spec, TEST, protocol.test_images)}
+    children = {split: [blockers(spec, s) for s in scenes] for split, scenes in splits.items()}
+    key = cache_key([asdict(spec), {split: [s.seed for s in scenes] for split, scenes in splits.items()}])
+    path = Path(ctx.cfg.paths.runs_dir) / "cache" / "ch6" / f"vmrd_{key}"
+    return cached(path, lambda partial: write_vmrd(partial, splits, children))
+
+
+def readable_vmrd(spec, scenes) -> None:
+    """Refuse, before any training, a data set our Ch.6 models cannot read: classes that are not part types (the
+    detector's classes and the solver's vocabulary are a, b, c) or images that are not ``env.image_size`` square
+    (the detector does not resize)."""
+    from hrc_lab.data.files import DataFileError
+    from hrc_lab.env.clutter.spec import PART_TYPES
+
+    classes = sorted({t for a in scenes for t in a.scene.types} - set(PART_TYPES))
+    if classes:
+        raise DataFileError(
+            f"{spec.vmrd_root}: classes {classes[:8]}{' ...' if len(classes) > 8 else ''} are not part types "
+            f"{list(PART_TYPES)}: the Ch.6 detector and solver are built for those; a data set of other classes "
+            "(VMRD's 31) needs class-generic heads, which hrc_lab does not have yet")
+    sizes = {a.scene.image.shape[:2] for a in scenes}
+    if sizes != {(spec.image_size, spec.image_size)}:
+        raise DataFileError(f"{spec.vmrd_root}: images are {sorted(sizes)} pixels; the detector reads them unresized "
+                            f"at env.image_size={spec.image_size} (square)")
+
+
+def image_accuracy(outcomes: pd.DataFrame, objects: list[int]) -> dict[str, float]:
+    """``ia``: the share of images whose every object is right (6.4.2); ``ia_<n>``: the same over the images of n
+    objects (``objects[k]``: how many image k holds); ``oa``: the share of objects right."""
+    per_image = outcomes.groupby("scene").correct.all()
+    counts = pd.Series(objects).loc[per_image.index]
+    metrics = {"ia": float(per_image.mean()), "oa": float(outcomes.correct.mean())}
+    metrics |= {f"ia_{n}": float(per_image[counts == n].mean()) for n in sorted(counts.unique())}
+    return metrics
+
+
+def table_6_3(ctx: RunContext) -> dict[str, float]:
+    from hrc_lab.data.vmrd import read_vmrd
+
+    root = vmrd_root(ctx)
+    train, test = read_vmrd(root, "trainval"), read_vmrd(root, "test")
+    readable_vmrd(ctx.cfg.env, train + test)
+    spec, _, detector, solver, metrics = prepare(ctx, [a.scene for a in train], [a.children for a in train])
+    test_scenes = [a.scene for a in test]
+    nodes = scene_nodes(spec, test_scenes, detector, ctx.cfg.grasp.detector, solver.needs_union_features,
+                        [a.children for a in test])
+    outcomes = part_outcomes(solver, nodes, [set(s.types) for s in test_scenes])  # every object of every image
+    objects = [len(s.objects) for s in test_scenes]
+    metrics |= image_accuracy(outcomes, objects) | detector_metrics(ctx, detector, test_scenes)
+    metrics |= {"trainval_images": float(len(train)), "test_images": float(len(test)),
+                "written_by_hrc_lab": float(ctx.cfg.env.vmrd_root is None)}
+    images = outcomes.groupby("scene").correct.all().rename("correct").reset_index()
+    images["image_id"] = [test[k].image_id for k in images.scene]
+    images["objects"] = [objects[k] for k in images.scene]
+    ctx.tracker.log_table(images, "images")
+    ctx.tracker.log_table(outcomes, "part_outcomes")
     return metrics
 
 

@@ -513,29 +513,46 @@ PROTOCOLS.register("ch3_fig_3_9", Fig39Protocol, f"{CH3_RL}:fig_3_9")
 
 
 @dataclass
-class Table61Protocol:
-    """Object accuracy (6.4.1): ``train_images`` rendered scenes, each with one random request of 1-3 part types,
-    train the solver; ``test_images`` unseen scenes are scored with new random requests of each size in
-    ``request_sizes``. Scenes and detector depend on ``data_seed`` only (cached and shared by every job)."""
+class ClutterScenesProtocol:
+    """The Ch.6 data: ``train_images`` rendered scenes train the detector and the solver, ``test_images`` unseen
+    ones are scored. Scenes and detector depend on ``data_seed`` only (cached and shared by every job)."""
 
     data_seed: int = 0
     train_images: int = 427
     test_images: int = 50
-    request_sizes: list[int] = field(default_factory=lambda: [1, 2, 3])
 
     def __post_init__(self) -> None:
         if self.data_seed < 0:
             raise ValueError(f"protocol.data_seed must be >= 0, got {self.data_seed}")
         if self.train_images < 1 or self.test_images < 1:
             raise ValueError("protocol.train_images and protocol.test_images must be >= 1")
-        if not self.request_sizes or any(k not in (1, 2, 3) for k in self.request_sizes):
-            raise ValueError(f"protocol.request_sizes must be values in 1..3, got {self.request_sizes}")
 
     def check(self, validated) -> None:
         """The detector reads the rendered images unresized: ``grasp.detector.image_size`` = ``env.image_size``."""
         size, rendered = validated.grasp.detector.image_size, validated.env.image_size
         if size != rendered:
             raise ValueError(f"grasp.detector.image_size={size} must equal env.image_size={rendered}")
+
+
+@dataclass
+class Table61Protocol(ClutterScenesProtocol):
+    """Object accuracy (6.4.1): each training scene carries one random request of 1-3 part types; the test scenes
+    are scored with new random requests of each size in ``request_sizes``."""
+
+    request_sizes: list[int] = field(default_factory=lambda: [1, 2, 3])
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.request_sizes or any(k not in (1, 2, 3) for k in self.request_sizes):
+            raise ValueError(f"protocol.request_sizes must be values in 1..3, got {self.request_sizes}")
+
+
+@dataclass
+class Table63Protocol(ClutterScenesProtocol):
+    """Image-based accuracy (6.4.2, Table 6.3) on a data set in VMRD v2's layout: its ``trainval`` images train the
+    detector and the solver, and a ``test`` image counts when every object in it is right (graspability, and the
+    solution when it cannot be grasped). ``env.vmrd_root`` names the data set; without one, the ``train_images`` and
+    ``test_images`` scenes of ``data_seed`` (Table 6.1's) are written in that layout first and read back."""
 
 
 @dataclass
@@ -568,6 +585,7 @@ class Table62SingleProtocol(Table61Protocol):
 CH6 = "hrc_lab.experiments.ch6_grasp"
 PROTOCOLS.register("ch6_table_6_1", Table61Protocol, f"{CH6}:table_6_1")
 PROTOCOLS.register("ch6_table_6_2_single", Table62SingleProtocol, f"{CH6}:table_6_2_single")
+PROTOCOLS.register("ch6_table_6_3", Table63Protocol, f"{CH6}:table_6_3")
 
 
 # The env and modules each protocol runs with (names of conf/<group>/*.yaml); a group not listed must be "none".
@@ -604,6 +622,7 @@ ACCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
     "render_demo": {"env": ROBOT_CELLS},
     "ch6_table_6_1": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
     "ch6_table_6_2_single": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
+    "ch6_table_6_3": {"env": ("vmrd",), "grasp": GRASP_SOLVERS},
 }
 GROUPS = ("env", "reasoning", "motion", "perception", "grasp", "rl", "tamp")
 

@@ -9,7 +9,7 @@ from itertools import combinations
 import numpy as np
 import torch
 
-from hrc_lab.env.clutter.rule import blockers, graspable, solution_tokens
+from hrc_lab.env.clutter.rule import blocker_solution, blockers
 from hrc_lab.env.clutter.spec import ClutterScene, ClutterSpec
 from hrc_lab.grasp.configs import DetectorConfig
 from hrc_lab.grasp.detection_metrics import match_detections
@@ -50,11 +50,15 @@ def enlarged_boxes(boxes: np.ndarray, scale: float, image_size: int) -> np.ndarr
 
 
 def scene_nodes(
-    spec: ClutterSpec, scenes: list[ClutterScene], detector, reading: DetectorConfig, union_features: bool = False
+    spec: ClutterSpec, scenes: list[ClutterScene], detector, reading: DetectorConfig, union_features: bool = False,
+    annotated_blockers: list[list[list[int]]] | None = None,
 ) -> list[SceneNodes]:
     """Detections (``reading.mode`` trained) or ground-truth boxes (``oracle``) with box-head features, matched to
     parts; with ``reading.context_scale`` > 1 each f_i is followed by the feature of its box enlarged by that
-    factor; with ``union_features`` also the feature of every pair's union box (GVMRN_RF)."""
+    factor; with ``union_features`` also the feature of every pair's union box (GVMRN_RF). The ground truth is the
+    rule's (:mod:`hrc_lab.env.clutter.rule`), or with ``annotated_blockers`` (per scene, per part, the parts to move
+    first: a data set's annotation, :mod:`hrc_lab.data.vmrd`) derived from those as the rule derives it from its
+    own: graspable when there is none, the solution from their types."""
     images = [s.image for s in scenes]
     if reading.mode == "oracle":
         features = detector.features_for_boxes(images, [s.boxes for s in scenes])
@@ -75,8 +79,10 @@ def scene_nodes(
             for d, p in zip(found, pairs)
         ]
         unions = [dict(zip(p, f)) for p, f in zip(pairs, detector.features_for_boxes(images, boxes))]
+    if annotated_blockers is None:
+        annotated_blockers = [blockers(spec, scene) for scene in scenes]
     nodes = []
-    for k, (scene, det) in enumerate(zip(scenes, found)):
+    for k, (scene, det, blocked_by) in enumerate(zip(scenes, found, annotated_blockers, strict=True)):
         match = match_detections(det.boxes, det.labels, scene.boxes, scene.types)  # per part: detection or -1
         truth = np.full(len(det.labels), -1)
         for part, node in enumerate(match):
@@ -89,9 +95,9 @@ def scene_nodes(
                 labels=list(det.labels),
                 features=torch.as_tensor(det.features).float(),
                 truth=truth,
-                rule_graspable=graspable(spec, scene),
-                rule_solution=[solution_tokens(spec, scene, i) for i in range(len(scene.objects))],
-                rule_blockers=blockers(spec, scene),
+                rule_graspable=np.array([not b for b in blocked_by], dtype=bool),
+                rule_solution=[blocker_solution(scene, i, b) for i, b in enumerate(blocked_by)],
+                rule_blockers=[list(b) for b in blocked_by],
                 union_features=unions[k] if unions else {},
             )
         )

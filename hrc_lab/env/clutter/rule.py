@@ -128,7 +128,7 @@ def graspable(spec: ClutterSpec, scene: ClutterScene) -> np.ndarray:
 
 def solution_tokens(spec: ClutterSpec, scene: ClutterScene, i: int) -> list[str]:
     """``["grasp"]``, ``["help"]``, ``["move", t1]`` or ``["move", t1, "and", t2]`` for part ``i``."""
-    return _tokens(scene, i, part_blockers(spec, scene, i))
+    return blocker_solution(scene, i, part_blockers(spec, scene, i))
 
 
 def solution_types(tokens: list[str]) -> list[str]:
@@ -157,7 +157,7 @@ def iterative_solution(spec: ClutterSpec, scene: ClutterScene, goal: int) -> lis
     current = goal
     while True:
         found = part_blockers(spec, scene, current)
-        tokens = _tokens(scene, current, found)
+        tokens = blocker_solution(scene, current, found)
         chain.append((current, tokens))
         if tokens[0] != MOVE:
             return chain
@@ -169,7 +169,8 @@ def iterative_solution(spec: ClutterSpec, scene: ClutterScene, goal: int) -> lis
         current = following
 
 
-def _tokens(scene: ClutterScene, i: int, found: list[int]) -> list[str]:
+def blocker_solution(scene: ClutterScene, i: int, found: list[int]) -> list[str]:
+    """The solution tokens of part ``i`` whose blockers are ``found`` (the rule's, or a data set's annotation)."""
     if not found:
         return [GRASP]
     kinds = sorted({scene.objects[j].type for j in found})

@@ -15,7 +15,7 @@ This module imports no simulator: validating a ``conf/env/clutter*.yaml`` stays 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -98,6 +98,30 @@ class ClutterSpec:
         u = self.image_size / 2 + scale * points[..., 0] / depth
         v = self.image_size / 2 - scale * points[..., 1] / depth
         return np.stack([u, v], axis=-1)
+
+
+@dataclass(frozen=True)
+class VmrdSpec(ClutterSpec):
+    """A data set in VMRD v2's on-disk layout (``conf/env/vmrd.yaml``, Table 6.3; :mod:`hrc_lab.data.vmrd`):
+    ``vmrd_root`` names it. Without one, the clutter scenes of this spec (Table 6.1's) are written in that layout
+    and read back, so the protocol runs the same way on both. The images must be ``image_size`` pixels square and
+    their classes part types (the Ch.6 detector and solver are built for a, b and c)."""
+
+    vmrd_root: str | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.vmrd_root is not None:
+            from hrc_lab.data.vmrd import check_layout
+
+            try:
+                check_layout(self.vmrd_root)
+            except ValueError as err:
+                raise ValueError(f"env.vmrd_root: {err}") from None
+
+    def clutter(self) -> ClutterSpec:
+        """The clutter scene spec of the same values (the scenes written when there is no ``vmrd_root``)."""
+        return ClutterSpec(**{f.name: getattr(self, f.name) for f in fields(ClutterSpec)})
 
 
 @dataclass
