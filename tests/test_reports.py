@@ -283,6 +283,19 @@ def test_table_4_2_states_its_test_conditions():
     assert "Test conditions" not in SECTIONS["table_4_2"](runs.assign(pick_span_x_m=float("nan"))).markdown
 
 
+def test_table_4_2_says_what_the_gpr_and_mlp_rows_depend_on():
+    load_sections()
+    runs = pd.DataFrame({"method": ["gpr", "mlp"], "cell": ["4of5"] * 2, "seed": [0, 0], "sr": [0.2, 0.9],
+                         "r2": [0.98, 1.0], "fail_pick": [0.1, 0.0], "param.motion.gpr_kernel": ["isotropic"] * 2,
+                         "param.motion.steps": ["3000"] * 2})
+    text = SECTIONS["table_4_2"](runs).markdown
+    assert "as one length scale for all its standardised inputs" in text and "SR 0.21–0.43), so it is" in text
+    assert "**MLP** trains 3000 steps" in text and "R² 0.43–0.87 in its own" in text
+    older = SECTIONS["table_4_2"](runs.drop(columns="param.motion.gpr_kernel")).markdown
+    assert "runs predate `motion.gpr_kernel`" in older
+    assert "**GPR**" not in SECTIONS["table_4_2"](runs[runs.method == "mlp"]).markdown
+
+
 def test_table_6_1_section_decomposes_the_object_accuracy():
     load_sections()
     seeds = [0, 1]
