@@ -155,7 +155,7 @@ def load_scenes(path: str | Path, spec: ClutterSpec | None = None) -> list[Clutt
 # --------------------------------------------------------------------------------------------------------------------
 
 
-def _import_mujoco():
+def import_mujoco():
     """``import mujoco`` with MUJOCO_GL=egl unless set; if EGL cannot be loaded, retry with OSMesa."""
     if "mujoco" in sys.modules:
         return sys.modules["mujoco"]
@@ -239,7 +239,7 @@ class _Cell:
     """The MuJoCo model, data and renderer of one MJCF (parts, sizes, camera, image size), reused scene after scene."""
 
     def __init__(self, xml: str, slots: list[str], part_size: dict[str, list[float]], image_size: int) -> None:
-        self.mj = mj = _import_mujoco()
+        self.mj = mj = import_mujoco()
         self.slots = slots  # part type per free body
         self.model = mj.MjModel.from_xml_string(xml)
         self.data = mj.MjData(self.model)
@@ -258,7 +258,7 @@ class _Cell:
         """Drop, settle and render the parts of ``counts``; None (and a count in :data:`REDRAWN`) when the scene
         fails a check."""
         mj, model, data = self.mj, self.model, self.data
-        active = [k for t in PART_TYPES for k in [s for s, u in enumerate(self.slots) if u == t][: counts[t]]]
+        active = self.active(counts)
         n = len(active)
         xy = rng.uniform(-spec.spawn_half_width, spec.spawn_half_width, size=(n, 2))
         yaw = rng.uniform(0, 2 * np.pi, size=n)
@@ -318,6 +318,10 @@ class _Cell:
             obj.box = np.array([cols.min(), rows.min(), cols.max() + 1, rows.max() + 1], dtype=np.float32)
         return ClutterScene(seed, image, objects, segmentation, resting=self._resting(active))
 
+    def active(self, counts: dict[str, int]) -> list[int]:
+        """The free bodies a scene of ``counts`` uses, in the order of its objects (by type, then slot)."""
+        return [k for t in PART_TYPES for k in [s for s, u in enumerate(self.slots) if u == t][: counts[t]]]
+
     def _top(self, slot: int) -> float:
         """Height of a part's highest corner, m."""
         geom = self.geoms[slot]
@@ -375,6 +379,45 @@ class _Cell:
         for i, slot in enumerate(active):
             segmentation[is_geom & (ids[..., 0] == self.geoms[slot])] = i
         return image, segmentation
+
+
+class SceneCamera:
+    """The top-down camera of one scene whose parts then move (the robot cell of Algorithm 4): it renders the RGB
+    image, the segmentation (object index or -1) and the depth (m along the optical axis) of the scene's parts at
+    the poses it is given, exactly as the scene's own image was rendered: same model, camera, part colours and key
+    light, re-derived by regenerating the scene from its seed (checked against the scene's image)."""
+
+    def __init__(self, spec: ClutterSpec, scene: ClutterScene) -> None:
+        regenerated = generate_scene(spec, scene.seed)
+        if not np.array_equal(regenerated.image, scene.image):
+            raise ValueError(f"scene {scene.seed}: regenerating it gives another image (another MuJoCo build or "
+                             "spec?); its camera cannot be rebuilt")
+        self.spec = spec
+        self.cell = cell = _cell(spec)
+        self.slots = cell.active(collections.Counter(scene.types))
+        self.rgba = cell.model.geom_rgba.copy()
+        self.light = (cell.model.light_pos.copy(), cell.model.light_dir.copy(), cell.model.light_diffuse.copy())
+
+    def render(self, positions: np.ndarray, quaternions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(image, segmentation, depth)`` with object i at ``positions[i]`` (m, the scene's frame) and
+        ``quaternions[i]`` (w, x, y, z); a part moved out of the view is simply not seen."""
+        cell, mj = self.cell, self.cell.mj
+        model, data = cell.model, cell.data
+        model.geom_rgba[:] = self.rgba
+        model.light_pos[:], model.light_dir[:], model.light_diffuse[:] = self.light
+        for slot in range(len(cell.slots)):
+            cell._set_pose(slot, [PARK_X + 0.2 * slot, 0, cell.half[slot][2]], [1, 0, 0, 0])
+        for slot, position, quaternion in zip(self.slots, positions, quaternions, strict=True):
+            cell._set_pose(slot, position, quaternion)
+        mj.mj_forward(model, data)
+        image, segmentation = cell._render(self.slots)
+        cell.renderer.enable_depth_rendering()
+        try:
+            cell.renderer.update_scene(data, camera="top")
+            depth = cell.renderer.render().copy()
+        finally:
+            cell.renderer.disable_depth_rendering()
+        return image, segmentation, depth
 
 
 def _counts(spec: ClutterSpec, rng: np.random.Generator) -> dict[str, int]:

@@ -99,6 +99,15 @@ class ClutterSpec:
         v = self.image_size / 2 - scale * points[..., 1] / depth
         return np.stack([u, v], axis=-1)
 
+    def unproject(self, pixels: np.ndarray, depth: np.ndarray) -> np.ndarray:
+        """(..., 2) pixel coordinates and their (...) depths along the optical axis (m) -> (..., 3) world points:
+        the inverse of :meth:`project`."""
+        pixels, depth = np.asarray(pixels, dtype=float), np.asarray(depth, dtype=float)
+        scale = self.image_size / 2 / (self.view_half_width / self.camera_height)
+        x = (pixels[..., 0] - self.image_size / 2) * depth / scale
+        y = -(pixels[..., 1] - self.image_size / 2) * depth / scale
+        return np.stack([x, y, self.camera_height - depth], axis=-1)
+
 
 @dataclass(frozen=True)
 class VmrdSpec(ClutterSpec):

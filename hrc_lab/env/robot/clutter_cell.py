@@ -1,0 +1,253 @@
+"""The Ch.6 robot cell (Sec. 6.4.1, Fig. 6.8): a UR5e with robosuite's Robotiq 2F-140 gripper at the clutter table,
+where Algorithm 4's proposals are grasped and the scene is imaged again.
+
+The thesis used the 2F-85. Its 85 mm stroke is shorter than part b (100 mm), which the rule grasps along x at any
+yaw (a b turned 45 degrees spans 98 mm in x), and robosuite's 2F-85 model, closed on nothing, stalled at a 60 mm gap
+and then folded its fingers through each other (measured here); the 2F-140 (same family, 140 mm stroke) spans every
+part at every yaw and closes to about 19 mm.
+
+- **World.** The clutter scene's table plane (:mod:`hrc_lab.env.clutter.scenes`) is this cell's table top, its
+  centre the table's centre (:data:`TABLE_TOP`); one box per part the spec allows (``max_counts``), with the scene
+  world's sizes, density and friction. :meth:`ClutterCell.place_scene` puts the parts of a rendered scene where they
+  settled, so the cell starts from the image the detector read.
+- **Camera.** :meth:`ClutterCell.image` is the scene's own top-down camera
+  (:class:`~hrc_lab.env.clutter.scenes.SceneCamera`: same pose, intrinsics, part colours and light) rendered at
+  the cell's current part poses, with depth. The arm waits at its observation pose, outside the view, while an
+  image is taken (it is not drawn). :meth:`ClutterCell.locate` turns a detected box into a 3-D grasp point from
+  the depth image and the camera model (no orientation: the thesis' depth camera).
+- **Grasp** (the rule's, Sec. 6.3): top down, the fingers closing along the world x axis (the wrist is turned a
+  quarter turn from robosuite's UR5e default), the finger tips ``grasp_depth`` below the part's top. The arm moves
+  by robosuite's OSC_POSE controller (delta input), driven to each waypoint by a proportional law that also holds
+  the gripper's orientation. :meth:`ClutterCell.pick` reports which part rose with the gripper and which other
+  parts the gripper touched; :meth:`ClutterCell.put` sets the held part down at a point and opens.
+
+Physics: robosuite's default 2 ms step, 20 Hz control.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hrc_lab.env.clutter.scenes import BASE_COLOURS, SceneCamera, import_mujoco
+from hrc_lab.env.clutter.spec import PART_TYPES, ClutterScene, ClutterSpec
+
+import_mujoco()  # before robosuite does: MuJoCo with an off-screen GL (EGL, else OSMesa) for the scene camera
+# isort: off
+import hrc_lab.env.robot.cell  # noqa: E402, F401  (first: it imports robosuite quietly, once)
+from robosuite.controllers import load_composite_controller_config  # noqa: E402
+from robosuite.environments.manipulation.manipulation_env import ManipulationEnv  # noqa: E402
+from robosuite.models.arenas import TableArena  # noqa: E402
+from robosuite.models.objects import BoxObject  # noqa: E402
+from robosuite.models.tasks import ManipulationTask  # noqa: E402
+from robosuite.utils.transform_utils import mat2quat, quat2axisangle, quat_inverse, quat_multiply  # noqa: E402
+# isort: on
+
+GRIPPER = "Robotiq140Gripper"
+TABLE_TOP = 0.8  # m: the cell's table top, the clutter scene's z = 0
+TABLE_SIZE = (0.8, 0.8, 0.05)
+PARK = np.array([0.3, 0.35])  # x, y where unused parts wait (out of the view and of the workspace), 0.1 m apart in x
+OBSERVE = np.array([-0.3, 0.0, 0.25])  # the gripper while an image is taken: outside the camera's view, m (scene frame)
+APPROACH = 0.10  # m above the grasp point before descending
+LIFT = 0.15  # m above the table after a grasp
+RELEASE_CLEARANCE = 0.005  # m between the held part and the table when it is set down
+GRIP_STEPS = 40  # control steps to close or open the fingers (2 s: the 2F-85 closes ~3 mm per step)
+GAIN = 8.0  # OSC delta per m of error (the controller clips to 0.05 m per step)
+ORIENTATION_GAIN = 2.0
+WAYPOINT_TOLERANCE = 0.004  # m
+MAX_WAYPOINT_STEPS = 120
+LIFTED = 0.03  # m a part must rise with the gripper to count as held
+TURN_WRIST = np.pi / 2  # from robosuite's UR5e home, so the fingers close along world x
+
+
+@dataclass
+class PickOutcome:
+    """What a grasp attempt did: ``held`` the object (index into the placed scene's objects) that rose with the
+    gripper or None, ``touched`` the other objects the gripper touched, ``steps`` the control steps used."""
+
+    held: int | None
+    touched: list[int] = field(default_factory=list)
+    steps: int = 0
+
+
+class ClutterCell(ManipulationEnv):
+    """See the module docstring. ``spec``: the clutter spec the scenes come from."""
+
+    def __init__(self, spec: ClutterSpec, seed: int | None = None) -> None:
+        self.spec = spec
+        self.slots = [t for t in PART_TYPES for _ in range(spec.max_counts[t])]
+        self.active: list[int] = []
+        self.camera: SceneCamera | None = None
+        super().__init__(
+            robots="UR5e",
+            gripper_types=GRIPPER,
+            controller_configs=load_composite_controller_config(robot="UR5e"),
+            initialization_noise=None,
+            use_camera_obs=False,
+            has_renderer=False,
+            has_offscreen_renderer=False,
+            control_freq=20,
+            horizon=100_000,
+            ignore_done=True,
+            hard_reset=False,
+            seed=seed,
+        )
+
+    # --- model ------------------------------------------------------------------------------------------------
+
+    def _load_model(self) -> None:
+        super()._load_model()
+        robot = self.robots[0]
+        robot.robot_model.set_base_xpos(robot.robot_model.base_xpos_offset["table"](TABLE_SIZE[0]))
+        home = np.array(robot.robot_model.init_qpos, dtype=float)
+        home[5] += TURN_WRIST
+        robot.init_qpos = home
+        arena = TableArena(table_full_size=TABLE_SIZE, table_offset=(0, 0, TABLE_TOP))
+        arena.set_origin([0, 0, 0])
+        self.parts = [
+            BoxObject(name=f"part{k}", size=[v / 2 for v in self.spec.part_size[t]], rgba=(*BASE_COLOURS[t], 1),
+                      density=1200, friction=(1.0, 0.005, 0.0001))
+            for k, t in enumerate(self.slots)
+        ]
+        self.model = ManipulationTask(mujoco_arena=arena, mujoco_robots=[robot.robot_model], mujoco_objects=self.parts)
+
+    def _setup_references(self) -> None:
+        super()._setup_references()
+        model = self.sim.model
+        self._part_bodies = [model.body_name2id(p.root_body) for p in self.parts]
+        self._part_geoms = [{model.geom_name2id(g) for g in p.contact_geoms} for p in self.parts]
+        self._gripper_geoms = {model.geom_name2id(g) for g in self.robots[0].gripper["right"].contact_geoms}
+        self._eef_site = self.robots[0].eef_site_id["right"]
+        self._base_body = model.body_name2id(self.robots[0].robot_model.root_body)
+
+    def _reset_internal(self) -> None:
+        super()._reset_internal()
+        for slot in range(len(self.slots)):
+            self._set_part(slot, [*self._parked(slot), self.spec.part_size[self.slots[slot]][2] / 2], [1, 0, 0, 0])
+        self.sim.forward()
+        self._down = self.sim.data.site_xmat[self._eef_site].reshape(3, 3).copy()  # the gripper's home orientation
+        self._tip_below_site = self.sim.data.site_xpos[self._eef_site][2] - self._lowest_finger_point()
+
+    def reward(self, action=None) -> float:
+        return 0.0
+
+    # --- scenes -----------------------------------------------------------------------------------------------
+
+    def place_scene(self, scene: ClutterScene) -> None:
+        """Reset the robot, put the scene's parts where they settled (the rest parked) and let them rest."""
+        self.reset()
+        self.camera = SceneCamera(self.spec, scene)
+        self.active = self.camera.slots
+        for slot, obj in zip(self.active, scene.objects, strict=True):
+            self._set_part(slot, obj.position, obj.quaternion)
+        self.sim.forward()
+        self._hold(OBSERVE, grip=-1.0)
+
+    def part_poses(self) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (scene frame, m) and quaternions (w, x, y, z) of the placed scene's objects."""
+        bodies = [self._part_bodies[s] for s in self.active]
+        positions = self.sim.data.body_xpos[bodies] - [0, 0, TABLE_TOP]
+        return positions.copy(), self.sim.data.body_xquat[bodies].copy()
+
+    def image(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(rgb, segmentation, depth)`` of the scene's camera at the current part poses."""
+        if self.camera is None:
+            raise RuntimeError("place_scene first: the camera is the placed scene's")
+        return self.camera.render(*self.part_poses())
+
+    def locate(self, box: np.ndarray, depth: np.ndarray) -> np.ndarray:
+        """The grasp point (scene frame, m) of a detected box: the box centre's pixel at the median depth of the
+        central third of the box (the part's top as the depth camera sees it)."""
+        x0, y0, x1, y1 = np.asarray(box, dtype=float)
+        cx, cy, w, h = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 6, (y1 - y0) / 6
+        rows = slice(int(np.floor(cy - h)), int(np.ceil(cy + h)) or 1)
+        cols = slice(int(np.floor(cx - w)), int(np.ceil(cx + w)) or 1)
+        return self.spec.unproject(np.array([cx, cy]), float(np.median(depth[rows, cols])))
+
+    # --- motion -----------------------------------------------------------------------------------------------
+
+    def pick(self, point: np.ndarray) -> PickOutcome:
+        """Open, come down on ``point`` (scene frame, the part's top) from above, close, lift; from the observation
+        pose and back to it with the part."""
+        start = self.timestep
+        point = np.asarray(point, dtype=float)
+        before = self.part_poses()[0][:, 2]
+        touched: set[int] = set()
+        grasp = point + [0, 0, self._tip_below_site - self.spec.grasp_depth]  # the finger tips grasp_depth below
+        self._hold(grasp + [0, 0, APPROACH], grip=-1.0)
+        self._hold(grasp, grip=-1.0, touched=touched)
+        self._hold(grasp, grip=1.0, steps=GRIP_STEPS, touched=touched)
+        self._hold(np.array([*point[:2], LIFT]), grip=1.0)
+        rose = self.part_poses()[0][:, 2] - before
+        held = int(np.argmax(rose)) if rose.max() > LIFTED else None
+        return PickOutcome(held, sorted(touched - {held}), self.timestep - start)
+
+    def put(self, xy: np.ndarray, held: int) -> None:
+        """Set the held object down with its centre at ``xy`` (scene frame), open, and go to the observation pose."""
+        grip_to_part = self.sim.data.site_xpos[self._eef_site] - TABLE_TOP * np.eye(3)[2] - self.part_poses()[0][held]
+        bottom = self.spec.part_size[self.object_type(held)][2] / 2 + RELEASE_CLEARANCE
+        self._hold(np.array([*xy, LIFT]) + [*grip_to_part[:2], 0], grip=1.0)
+        self._hold(np.array([*xy, bottom]) + grip_to_part, grip=1.0)
+        self._hold(np.array([*xy, bottom]) + grip_to_part, grip=-1.0, steps=GRIP_STEPS)
+        self._hold(np.array([*xy, LIFT]) + [*grip_to_part[:2], 0], grip=-1.0)
+        self._hold(OBSERVE, grip=-1.0)
+
+    def object_type(self, index: int) -> str:
+        """The part type of the placed scene's object ``index``."""
+        return self.slots[self.active[index]]
+
+    def _hold(self, target: np.ndarray, grip: float, steps: int | None = None, touched: set[int] | None = None) -> None:
+        """Drive the gripper site to ``target`` (scene frame) until within tolerance (or for exactly ``steps``
+        control steps), fingers commanded ``grip`` (-1 open, 1 closed), orientation held; contacts of the gripper
+        with the placed objects go into ``touched``."""
+        goal = np.asarray(target, dtype=float) + [0, 0, TABLE_TOP]
+        base = self.sim.data.body_xmat[self._base_body].reshape(3, 3)
+        for _ in range(steps or MAX_WAYPOINT_STEPS):
+            error = goal - self.sim.data.site_xpos[self._eef_site]
+            if steps is None and np.linalg.norm(error) < WAYPOINT_TOLERANCE:
+                return
+            action = np.zeros(7)
+            action[:3] = np.clip(GAIN * base.T @ error, -1, 1)
+            action[3:6] = np.clip(ORIENTATION_GAIN * base.T @ self._orientation_error(), -1, 1)
+            action[6] = grip
+            self.step(action)
+            if touched is not None:
+                touched.update(self._gripper_contacts())
+
+    def _orientation_error(self) -> np.ndarray:
+        """Axis-angle (world frame) that turns the gripper's current orientation into its home one."""
+        current = mat2quat(self.sim.data.site_xmat[self._eef_site].reshape(3, 3))
+        turn = quat_multiply(mat2quat(self._down), quat_inverse(current))  # (x, y, z, w)
+        return quat2axisangle(turn if turn[3] >= 0 else -turn)  # the shorter way round
+
+    def _lowest_finger_point(self) -> float:
+        """The world height of the lowest corner of the gripper's finger geoms (open, at home)."""
+        model, data = self.sim.model, self.sim.data
+        signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+        lowest = np.inf
+        for geom in self._gripper_geoms:
+            if "finger" not in (model.geom_id2name(geom) or ""):
+                continue
+            corners = data.geom_xpos[geom] + (signs * model.geom_size[geom]) @ data.geom_xmat[geom].reshape(3, 3).T
+            lowest = min(lowest, float(corners[:, 2].min()))
+        return lowest
+
+    def _gripper_contacts(self) -> set[int]:
+        """The placed objects the gripper touches now."""
+        data, found = self.sim.data, set()
+        owner = {g: i for i, slot in enumerate(self.active) for g in self._part_geoms[slot]}
+        for contact in data.contact[: data.ncon]:
+            for mine, other in ((contact.geom1, contact.geom2), (contact.geom2, contact.geom1)):
+                if mine in self._gripper_geoms and other in owner:
+                    found.add(owner[other])
+        return found
+
+    def _parked(self, slot: int) -> np.ndarray:
+        return PARK + [0.1 * slot, 0]
+
+    def _set_part(self, slot: int, position, quaternion) -> None:
+        self.sim.data.set_joint_qpos(self.parts[slot].joints[0],
+                                     np.concatenate([np.asarray(position, dtype=float) + [0, 0, TABLE_TOP],
+                                                     quaternion]))
+        self.sim.data.set_joint_qvel(self.parts[slot].joints[0], np.zeros(6))
