@@ -5,13 +5,20 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import torch
 
-from hrc_lab.env.clutter.rule import graspable, part_corners
+import hrc_lab.config  # noqa: F401  (the registries, before hrc_lab.grasp)
+from hrc_lab.env.clutter.rule import blocker_solution, blockers, graspable, part_corners
 from hrc_lab.env.clutter.scenes import generate_scene
 from hrc_lab.env.clutter.spec import ClutterSpec
+from hrc_lab.experiments.ch6_grasp import iterative_correct
+from hrc_lab.grasp.observation import SceneNodes
+from hrc_lab.grasp.solver import NodeReading
 
 SPEC = ClutterSpec()
 SINGLE = replace(SPEC, min_objects=1, max_objects=1)
+THREE = replace(SPEC, min_objects=3, max_objects=3)
+A_UNDER_B = 168  # generate_scene(THREE, 168): a b lies on the only a; the rule: move b, then grasp a
 ONE_PART_SEEDS = {"a": 0, "b": 1, "c": 11}  # single-part scenes of each type (generate_scene(SINGLE, seed))
 TRAY = np.array([0.0, 0.3])
 
@@ -67,3 +74,42 @@ def test_the_gripper_picks_an_isolated_part_of_each_type(part_type):
         assert np.linalg.norm(position[:2] - TRAY) < 0.02 and position[2] < SPEC.part_size[part_type][2]
     finally:
         cell.close()
+
+
+def oracle_nodes(now):
+    """The scene as a perfect detector and the rule would read it."""
+    found = blockers(THREE, now)
+    return SceneNodes(now, now.boxes, list(now.types), torch.zeros(len(found), 1), np.arange(len(found)),
+                      np.array([not b for b in found]), [blocker_solution(now, i, b) for i, b in enumerate(found)],
+                      found)
+
+
+def oracle_read(nodes, mask):
+    return [NodeReading(float(g), s) for g, s in zip(nodes.rule_graspable, nodes.rule_solution)]
+
+
+def oracle_episode(cell, max_grasps):
+    from hrc_lab.grasp.robot_grasping import run_episode
+
+    scene = generate_scene(THREE, A_UNDER_B)
+    return run_episode(cell, scene, THREE, "a", oracle_nodes, oracle_read, max_requests=6, max_grasps=max_grasps,
+                       answer_right=lambda nodes, goal, answer: iterative_correct(THREE, nodes, goal, answer))
+
+
+def test_algorithm_4_with_the_robot_moves_the_blocker_then_delivers(cell):
+    from hrc_lab.env.robot.clutter_cell import ASIDE, TRAY
+
+    episode = oracle_episode(cell, max_grasps=6)
+    assert episode.success and episode.failure == ""
+    assert [s.action for s in episode.steps] == ["grasp b", "grasp a"] and [s.held for s in episode.steps] == ["b", "a"]
+    assert all(s.right for s in episode.steps) and set(episode.steps[0].seconds) == {"render", "detection",
+                                                                                        "reasoning", "motion"}
+    positions = cell.part_poses()[0]
+    kinds = [cell.object_type(i) for i in range(len(positions))]
+    assert np.linalg.norm(positions[kinds.index("a"), :2] - TRAY) < 0.03
+    assert min(np.linalg.norm(positions[i, :2] - ASIDE[0]) for i, k in enumerate(kinds) if k == "b") < 0.03
+
+
+def test_the_grasp_bound_ends_the_episode(cell):
+    episode = oracle_episode(cell, max_grasps=1)
+    assert not episode.success and episode.failure == "iteration_bound" and len(episode.steps) == 1

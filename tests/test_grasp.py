@@ -286,11 +286,12 @@ TINY_CH6 = ["hydra.mode=RUN", "trainer.max_epochs=1", "grasp.steps=2", "grasp.de
     ("ch6/table_6_1", ["grasp=gvmrn_rf", "grasp.detector.mode=oracle", "protocol.test_images=2"]),
     ("ch6/table_6_2_single", ["protocol.object_counts=[3]", "protocol.cases=2"]),
     ("ch6/table_6_3", ["grasp=gvmrn_rf", "grasp.detector.mode=oracle", "protocol.test_images=2"]),
+    ("ch6/table_6_2_robot", ["protocol.object_counts=[3]", "protocol.cases=1", "protocol.max_grasps=1"]),
 ])
 def test_grasp_experiment_end_to_end(experiment, overrides, run_job):
     """A tiny detector and solver through render -> detect (+ context features) -> graph -> metrics -> MLflow
     (Table 6.3: through the scenes written in VMRD's layout and read back)."""
     job = run_job(f"experiment={experiment}", *TINY_CH6, *overrides)
-    key = {"6_1": "oa_1", "6_2_single": "acc_3", "6_3": "ia"}[experiment.split("table_")[1]]
+    key = {"6_1": "oa_1", "6_2_single": "acc_3", "6_2_robot": "acc_3", "6_3": "ia"}[experiment.split("table_")[1]]
     assert f"{key}=" in job.log
     assert job.run.data.metrics[key] == pytest.approx(job.metrics[key], nan_ok=True)

@@ -218,6 +218,58 @@ def table_6_2_single(ctx: RunContext) -> dict[str, float]:
     return metrics
 
 
+def table_6_2_robot(ctx: RunContext) -> dict[str, float]:
+    """The robot row of Table 6.2: the single-image row's scenes and requested types (same seeds and draws), each an
+    episode of :func:`hrc_lab.grasp.robot_grasping.run_episode` in the robot cell."""
+    from hrc_lab.env.robot.clutter_cell import ClutterCell
+    from hrc_lab.grasp.robot_grasping import ROBOT_FAILURES, run_episode
+
+    spec, protocol, detector, solver, metrics = prepare(ctx)
+    cfg = ctx.cfg.grasp
+    cell = ClutterCell(spec, seed=ctx.seed)
+    rng = ctx.rng(63)  # the single-image row's stream: the same requested type for each scene
+    episodes, steps = [], []
+    try:
+        for count in protocol.object_counts:
+            fixed = replace(spec, min_objects=count, max_objects=count)
+            scenes = scene_set(ctx, fixed, ITERATIVE * 10 + count, protocol.cases)
+            outcomes, causes = [], []
+            for k, scene in enumerate(tqdm(scenes, desc=f"Algorithm 4 with the robot, {count} objects", unit="scene")):
+                goal = str(rng.choice(sorted(set(scene.types))))
+                episode = run_episode(
+                    cell, scene, fixed, goal,
+                    perceive=lambda now, fixed=fixed: scene_nodes(fixed, [now], detector, cfg.detector,
+                                                                  solver.needs_union_features)[0],
+                    read=lambda nodes, mask: solver.read([solver.graph(nodes, mask)])[0],
+                    max_requests=cfg.max_iterations, max_grasps=protocol.max_grasps,
+                    answer_right=lambda nodes, goal, answer, fixed=fixed: iterative_correct(fixed, nodes, goal, answer),
+                )
+                outcomes.append(episode.success)
+                causes.append(episode.failure)
+                episodes.append({"objects": count, "scene": k, "goal": goal, "success": episode.success,
+                                 "failure": episode.failure, "grasps": sum(s.held is not None for s in episode.steps),
+                                 "iterations": len(episode.steps)})
+                steps += [{"objects": count, "scene": k, "iteration": i, "action": s.action, "right": s.right,
+                           "cause": s.cause, "held": s.held or "", "disturbed": s.disturbed,
+                           "requests": " | ".join(" ".join(r) for r in s.requests),
+                           "solutions": " | ".join(" ".join(w) for w in s.solutions),
+                           **{f"{phase}_ms": 1000 * v for phase, v in s.seconds.items()}}
+                          for i, s in enumerate(episode.steps)]
+            metrics[f"acc_{count}"] = float(np.mean(outcomes))
+            metrics |= {f"fail_{cause}_{count}": causes.count(cause) / len(causes) for cause in ROBOT_FAILURES}
+    finally:
+        cell.close()
+    steps_table = pd.DataFrame(steps)
+    for phase in ("render", "detection", "reasoning"):
+        metrics[f"{phase}_ms"] = float(steps_table[f"{phase}_ms"].mean())
+    grasped = steps_table[steps_table.action.str.startswith("grasp")]
+    metrics["motion_ms"] = float(grasped.motion_ms.mean()) if len(grasped) else float("nan")  # per grasp + put
+    metrics["perception_reasoning_ms"] = float(steps_table[["render_ms", "detection_ms", "reasoning_ms"]].sum(1).mean())
+    ctx.tracker.log_table(pd.DataFrame(episodes), "robot_episodes")
+    ctx.tracker.log_table(steps_table, "robot_steps")
+    return metrics
+
+
 def vmrd_root(ctx: RunContext) -> Path:
     """``env.vmrd_root``, or the protocol's rendered scenes written in VMRD's layout (their rule blockers as each
     part's children) under ``<paths.runs_dir>/cache/ch6/vmrd_<key>``, once for every job."""

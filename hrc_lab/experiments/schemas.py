@@ -582,10 +582,24 @@ class Table62SingleProtocol(Table61Protocol):
                              f"env.max_counts={dict(max_counts)}), got {self.object_counts}")
 
 
+@dataclass
+class Table62RobotProtocol(Table62SingleProtocol):
+    """Algorithm 4 with the robot (Table 6.2, robot row): the single-image row's scenes and requests, acted on in the
+    robot cell until the requested part is delivered, help, no answer, a failed grasp, or ``max_grasps`` grasps."""
+
+    max_grasps: int = 6
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.max_grasps < 1:
+            raise ValueError(f"protocol.max_grasps must be >= 1, got {self.max_grasps}")
+
+
 CH6 = "hrc_lab.experiments.ch6_grasp"
 PROTOCOLS.register("ch6_table_6_1", Table61Protocol, f"{CH6}:table_6_1")
 PROTOCOLS.register("ch6_table_6_2_single", Table62SingleProtocol, f"{CH6}:table_6_2_single")
 PROTOCOLS.register("ch6_table_6_3", Table63Protocol, f"{CH6}:table_6_3")
+PROTOCOLS.register("ch6_table_6_2_robot", Table62RobotProtocol, f"{CH6}:table_6_2_robot")
 
 
 # The env and modules each protocol runs with (names of conf/<group>/*.yaml); a group not listed must be "none".
@@ -623,6 +637,7 @@ ACCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
     "ch6_table_6_1": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
     "ch6_table_6_2_single": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
     "ch6_table_6_3": {"env": ("vmrd",), "grasp": GRASP_SOLVERS},
+    "ch6_table_6_2_robot": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
 }
 GROUPS = ("env", "reasoning", "motion", "perception", "grasp", "rl", "tamp")
 

@@ -48,6 +48,8 @@ GRIPPER = "Robotiq140Gripper"
 TABLE_TOP = 0.8  # m: the cell's table top, the clutter scene's z = 0
 TABLE_SIZE = (0.8, 0.8, 0.05)
 PARK = np.array([0.3, 0.35])  # x, y where unused parts wait (out of the view and of the workspace), 0.1 m apart in x
+TRAY = np.array([0.0, 0.3])  # x, y where requested parts are delivered (outside the camera's view)
+ASIDE = np.array([[-0.12 + 0.08 * k, -0.3] for k in range(4)])  # free spots where blocking parts are put aside
 OBSERVE = np.array([-0.3, 0.0, 0.25])  # the gripper while an image is taken: outside the camera's view, m (scene frame)
 APPROACH = 0.10  # m above the grasp point before descending
 LIFT = 0.15  # m above the table after a grasp
@@ -134,10 +136,11 @@ class ClutterCell(ManipulationEnv):
 
     # --- scenes -----------------------------------------------------------------------------------------------
 
-    def place_scene(self, scene: ClutterScene) -> None:
-        """Reset the robot, put the scene's parts where they settled (the rest parked) and let them rest."""
+    def place_scene(self, scene: ClutterScene, spec: ClutterSpec | None = None) -> None:
+        """Reset the robot, put the scene's parts where they settled (the rest parked) and let them rest; ``spec``:
+        the one the scene was rendered from, when its part counts differ from the cell's."""
         self.reset()
-        self.camera = SceneCamera(self.spec, scene)
+        self.camera = SceneCamera(spec or self.spec, scene)
         self.active = self.camera.slots
         for slot, obj in zip(self.active, scene.objects, strict=True):
             self._set_part(slot, obj.position, obj.quaternion)
@@ -155,6 +158,24 @@ class ClutterCell(ManipulationEnv):
         if self.camera is None:
             raise RuntimeError("place_scene first: the camera is the placed scene's")
         return self.camera.render(*self.part_poses())
+
+    def current_scene(self, seed: int) -> tuple[ClutterScene, list[int]]:
+        """The scene as the camera sees it now, with the data the rule reads (poses, visible boxes, which part rests
+        on which from the contact forces, as :mod:`hrc_lab.env.clutter.scenes` reads them), and the indices (into
+        the placed scene's objects) of the parts in it: those the camera sees at all."""
+        from hrc_lab.env.clutter.spec import ClutterObject
+
+        image, segmentation, _ = self.image()
+        positions, quaternions = self.part_poses()
+        shown = [i for i in range(len(self.active)) if (segmentation == i).any()]
+        objects, remap = [], np.full(len(self.active) + 1, -1, dtype=np.int8)
+        for k, i in enumerate(shown):
+            rows, cols = np.nonzero(segmentation == i)
+            box = np.array([cols.min(), rows.min(), cols.max() + 1, rows.max() + 1], dtype=np.float32)
+            objects.append(ClutterObject(self.object_type(i), positions[i], quaternions[i], box))
+            remap[i] = k
+        scene = ClutterScene(seed, image, objects, remap[segmentation], self._resting(shown))
+        return scene, shown
 
     def locate(self, box: np.ndarray, depth: np.ndarray) -> np.ndarray:
         """The grasp point (scene frame, m) of a detected box: the box centre's pixel at the median depth of the
@@ -220,6 +241,27 @@ class ClutterCell(ManipulationEnv):
         current = mat2quat(self.sim.data.site_xmat[self._eef_site].reshape(3, 3))
         turn = quat_multiply(mat2quat(self._down), quat_inverse(current))  # (x, y, z, w)
         return quat2axisangle(turn if turn[3] >= 0 else -turn)  # the shorter way round
+
+    def _resting(self, shown: list[int]) -> np.ndarray:
+        """resting[i][j]: part j lies on part i (force-weighted mean contact normal within 45 degrees of vertical)."""
+        import mujoco
+
+        from hrc_lab.env.clutter.scenes import MIN_SUPPORT_FORCE, VERTICAL_NORMAL
+
+        model, data = self.sim.model._model, self.sim.data._data
+        index = {g: k for k, i in enumerate(shown) for g in self._part_geoms[self.active[i]]}
+        push, force = np.zeros((len(shown), len(shown), 3)), np.zeros(6)
+        for c in range(data.ncon):
+            contact = data.contact[c]
+            i, j = index.get(contact.geom1), index.get(contact.geom2)
+            if i is None or j is None or i == j:
+                continue
+            mujoco.mj_contactForce(model, data, c, force)
+            normal = contact.frame[:3] * force[0]
+            push[i, j] += normal
+            push[j, i] -= normal
+        norm = np.linalg.norm(push, axis=-1)
+        return (norm > MIN_SUPPORT_FORCE) & (push[..., 2] > VERTICAL_NORMAL * norm)
 
     def _lowest_finger_point(self) -> float:
         """The world height of the lowest corner of the gripper's finger geoms (open, at home)."""
