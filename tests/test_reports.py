@@ -335,6 +335,19 @@ def test_table_6_2_section_gives_the_failure_causes_and_answer_lengths(monkeypat
     assert "Why answers are wrong" not in SECTIONS["table_6_2_single"](runs.drop(columns="fail_detection_3")).markdown
 
 
+def test_table_6_2_robot_section_gives_causes_and_times():
+    load_sections()
+    runs = pd.DataFrame({"method": ["gnn_att"] * 2, "seed": [0, 1], "cell": ["clutter"] * 2, "run_id": ["r0", "r1"],
+                         "acc_3": [0.6, 0.8], "fail_slip_3": [0.1, 0.0], "fail_collision_3": [0.3, 0.2],
+                         "fail_detection_3": [0.0, 0.0], "render_ms": [30.0, 32.0], "detection_ms": [50.0, 52.0],
+                         "reasoning_ms": [6.0, 6.0], "motion_ms": [4000.0, 4200.0],
+                         "perception_reasoning_ms": [86.0, 90.0], "param.protocol.cases": ["30"] * 2})
+    markdown = SECTIONS["table_6_2_robot"](runs).markdown
+    assert "| robot grasping (ours, GNN_Att) | 0.700 ± 0.100 (0.91) |" in markdown
+    assert re.search(r"\| detection\s+\| 0.000 ± 0.000 \|\n\| slip\s+\| 0.050 ± 0.050 \|\n\| collision", markdown)
+    assert "together 88.0 ± 2.0 ms per iteration" in markdown and "30 scenes per part count" in markdown
+
+
 def test_table_6_3_section_says_whose_data_it_read():
     load_sections()
     runs = pd.DataFrame({"method": ["gnn_att", "gnn_att", "gvmrn_rf"], "seed": [0, 1, 0], "cell": ["clutter"] * 3,

@@ -38,10 +38,11 @@ def test_dry_run_prints_every_step(capsys):
     assert main(["ch6", "--dry-run"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert [line.split(": ", 1)[0] for line in lines] == [
-        "[1/4] sweep ch6/table_6_1",
-        "[2/4] sweep ch6/table_6_2_single",
-        "[3/4] sweep ch6/table_6_3",
-        "[4/4] report ch6_grasp",
+        "[1/5] sweep ch6/table_6_1",
+        "[2/5] sweep ch6/table_6_2_single",
+        "[3/5] sweep ch6/table_6_2_robot",
+        "[4/5] sweep ch6/table_6_3",
+        "[5/5] report ch6_grasp",
     ]
 
 

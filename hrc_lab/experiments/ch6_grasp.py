@@ -222,7 +222,8 @@ def table_6_2_robot(ctx: RunContext) -> dict[str, float]:
     """The robot row of Table 6.2: the single-image row's scenes and requested types (same seeds and draws), each an
     episode of :func:`hrc_lab.grasp.robot_grasping.run_episode` in the robot cell."""
     from hrc_lab.env.robot.clutter_cell import ClutterCell
-    from hrc_lab.grasp.robot_grasping import ROBOT_FAILURES, run_episode
+    from hrc_lab.grasp.diagnostics import ROBOT_FAILURES
+    from hrc_lab.grasp.robot_grasping import run_episode
 
     spec, protocol, detector, solver, metrics = prepare(ctx)
     cfg = ctx.cfg.grasp

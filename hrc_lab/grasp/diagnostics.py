@@ -23,6 +23,8 @@ from hrc_lab.grasp.observation import SceneNodes
 from hrc_lab.grasp.solver import NodeReading
 
 FAILURE_CAUSES = ("detection", "graspability", "solution", "other")
+# Algorithm 4 with the robot (hrc_lab.grasp.robot_grasping): the single-image causes, then the robot's own
+ROBOT_FAILURES = (*FAILURE_CAUSES, "slip", "collision", "iteration_bound")
 GEOMETRY_METRICS = ("geometry_pair_distance_median", "geometry_pairs_within_filter",
                     "geometry_blocker_distance_median", "geometry_blocker_distance_max",
                     "geometry_blockers_within_filter", "geometry_neighbours_within_filter",

@@ -10,7 +10,8 @@ starts from the new image. The episode ends with the delivery, help, no answer, 
 ``max_grasps`` grasps.
 
 It succeeds when a part of the requested type is delivered, or when it ends in help on a scene where the rule's own
-Algorithm 4 ends in help too. Otherwise its failure is the first of :data:`ROBOT_FAILURES` that explains it:
+Algorithm 4 ends in help too. Otherwise its failure is the first of
+:data:`~hrc_lab.grasp.diagnostics.ROBOT_FAILURES` that explains it:
 the single-image causes of the answer that went wrong (:func:`hrc_lab.grasp.diagnostics.failure_cause`, judged
 against the rule on the scene as it was then: ``detection``, ``graspability``, ``solution``, ``other``), ``slip``
 (the gripper closed on the named part and nothing rose with it), ``collision`` (the gripper moved a neighbour by
@@ -31,7 +32,6 @@ from hrc_lab.grasp.iterative import iterate
 from hrc_lab.grasp.observation import SceneNodes
 from hrc_lab.grasp.solver import NodeReading
 
-ROBOT_FAILURES = ("detection", "graspability", "solution", "other", "slip", "collision", "iteration_bound")
 DISTURBED = 0.005  # m: a neighbour moved this far by a grasp counts as a collision
 
 

@@ -110,7 +110,7 @@ TOPICS = {
         "expert; the detector is a small Faster R-CNN trained from scratch on the rendered scenes, not a "
         "pretrained ResNet-101-FPN.",
         [("ch6/table_6_1", "table_6_1"), ("ch6/table_6_2_single", "table_6_2_single"),
-         ("ch6/table_6_3", "table_6_3")],
+         ("ch6/table_6_2_robot", "table_6_2_robot"), ("ch6/table_6_3", "table_6_3")],
     ),
     "data_demonstrations": (
         "Robot cells and scripted-expert demonstrations (Ch.3, Ch.4)",
