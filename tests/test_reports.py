@@ -341,8 +341,12 @@ def test_table_6_2_robot_section_gives_causes_and_times():
                          "acc_3": [0.6, 0.8], "fail_slip_3": [0.1, 0.0], "fail_collision_3": [0.3, 0.2],
                          "fail_detection_3": [0.0, 0.0], "render_ms": [30.0, 32.0], "detection_ms": [50.0, 52.0],
                          "reasoning_ms": [6.0, 6.0], "motion_ms": [4000.0, 4200.0],
-                         "perception_reasoning_ms": [86.0, 90.0], "param.protocol.cases": ["30"] * 2})
-    markdown = SECTIONS["table_6_2_robot"](runs).markdown
+                         "perception_reasoning_ms": [86.0, 90.0], "param.protocol.cases": ["30"] * 2,
+                         "video_scene": [float("nan"), 2.0], "param.protocol.video_objects": ["5"] * 2})
+    section = SECTIONS["table_6_2_robot"](runs)
+    markdown = section.markdown
+    assert "seed 1, scene 2 with 5 parts" in markdown  # the one run that filmed an episode
+    assert section.artifacts["robot_episode.mp4"] == ("r1", "videos/robot_episode.mp4")
     assert "| robot grasping (ours, GNN_Att) | 0.700 ± 0.100 (0.91) |" in markdown
     assert re.search(r"\| detection\s+\| 0.000 ± 0.000 \|\n\| slip\s+\| 0.050 ± 0.050 \|\n\| collision", markdown)
     assert "together 88.0 ± 2.0 ms per iteration" in markdown and "30 scenes per part count" in markdown

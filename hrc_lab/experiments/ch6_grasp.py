@@ -229,7 +229,18 @@ def table_6_2_robot(ctx: RunContext) -> dict[str, float]:
     cfg = ctx.cfg.grasp
     cell = ClutterCell(spec, seed=ctx.seed)
     rng = ctx.rng(63)  # the single-image row's stream: the same requested type for each scene
-    episodes, steps = [], []
+
+    def episode_of(cell, scene, fixed, goal, on_decision=None):
+        return run_episode(
+            cell, scene, fixed, goal,
+            perceive=lambda now: scene_nodes(fixed, [now], detector, cfg.detector, solver.needs_union_features)[0],
+            read=lambda nodes, mask: solver.read([solver.graph(nodes, mask)])[0],
+            max_requests=cfg.max_iterations, max_grasps=protocol.max_grasps,
+            answer_right=lambda nodes, goal, answer: iterative_correct(fixed, nodes, goal, answer),
+            on_decision=on_decision,
+        )
+
+    episodes, steps, shown = [], [], None
     try:
         for count in protocol.object_counts:
             fixed = replace(spec, min_objects=count, max_objects=count)
@@ -237,14 +248,9 @@ def table_6_2_robot(ctx: RunContext) -> dict[str, float]:
             outcomes, causes = [], []
             for k, scene in enumerate(tqdm(scenes, desc=f"Algorithm 4 with the robot, {count} objects", unit="scene")):
                 goal = str(rng.choice(sorted(set(scene.types))))
-                episode = run_episode(
-                    cell, scene, fixed, goal,
-                    perceive=lambda now, fixed=fixed: scene_nodes(fixed, [now], detector, cfg.detector,
-                                                                  solver.needs_union_features)[0],
-                    read=lambda nodes, mask: solver.read([solver.graph(nodes, mask)])[0],
-                    max_requests=cfg.max_iterations, max_grasps=protocol.max_grasps,
-                    answer_right=lambda nodes, goal, answer, fixed=fixed: iterative_correct(fixed, nodes, goal, answer),
-                )
+                episode = episode_of(cell, scene, fixed, goal)
+                if shown is None and episode.success and count == protocol.video_objects:
+                    shown = (scene, fixed, goal, k)
                 outcomes.append(episode.success)
                 causes.append(episode.failure)
                 episodes.append({"objects": count, "scene": k, "goal": goal, "success": episode.success,
@@ -260,6 +266,10 @@ def table_6_2_robot(ctx: RunContext) -> dict[str, float]:
             metrics |= {f"fail_{cause}_{count}": causes.count(cause) / len(causes) for cause in ROBOT_FAILURES}
     finally:
         cell.close()
+    if shown is not None:
+        metrics["video_scene"] = float(shown[3])
+        for path in robot_video(ctx, episode_of, *shown[:3]):
+            ctx.tracker.log_artifact(path, "videos")
     steps_table = pd.DataFrame(steps)
     for phase in ("render", "detection", "reasoning"):
         metrics[f"{phase}_ms"] = float(steps_table[f"{phase}_ms"].mean())
@@ -269,6 +279,30 @@ def table_6_2_robot(ctx: RunContext) -> dict[str, float]:
     ctx.tracker.log_table(pd.DataFrame(episodes), "robot_episodes")
     ctx.tracker.log_table(steps_table, "robot_steps")
     return metrics
+
+
+def robot_video(ctx: RunContext, episode_of, scene: ClutterScene, spec: ClutterSpec, goal: str) -> list[Path]:
+    """One episode again, filmed from the cell's side camera with each decision as the caption
+    (``robot_episode.mp4`` and its strip)."""
+    from hrc_lab.env.robot.clutter_cell import ClutterCell
+    from hrc_lab.env.robot.settings import CELL_CAMERA
+    from hrc_lab.tamp.video import FrameRecorder, save_video
+
+    cell = ClutterCell(ctx.cfg.env, seed=ctx.seed, render=True)
+    try:
+        recorder = FrameRecorder(cell, CELL_CAMERA, 480, 360, frame_skip=2)
+        cell.on_step = recorder.tick
+
+        def caption(step):
+            recorder.text = f"request {goal}: " + " -> ".join([*(" ".join(s) for s in step.solutions), step.action])
+
+        episode = episode_of(cell, scene, spec, goal, on_decision=caption)
+        recorder.text = "delivered" if episode.success else f"failed: {episode.failure}"
+        recorder.frames.append(recorder.frame())
+        fps = cell.control_freq / recorder.frame_skip
+        return save_video(recorder.frames, ctx.output_dir / "robot_episode.mp4", fps)
+    finally:
+        cell.close()
 
 
 def vmrd_root(ctx: RunContext) -> Path:

@@ -588,11 +588,14 @@ class Table62RobotProtocol(Table62SingleProtocol):
     robot cell until the requested part is delivered, help, no answer, a failed grasp, or ``max_grasps`` grasps."""
 
     max_grasps: int = 6
+    video_objects: int = 5  # a video of the first successful episode with this many parts (0: none)
 
     def __post_init__(self) -> None:
         super().__post_init__()
         if self.max_grasps < 1:
             raise ValueError(f"protocol.max_grasps must be >= 1, got {self.max_grasps}")
+        if self.video_objects < 0:
+            raise ValueError(f"protocol.video_objects must be >= 0, got {self.video_objects}")
 
 
 CH6 = "hrc_lab.experiments.ch6_grasp"

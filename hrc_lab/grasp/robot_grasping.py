@@ -59,11 +59,13 @@ class RobotEpisode:
 
 def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[object], SceneNodes],
                 read: Callable[[SceneNodes, np.ndarray], list[NodeReading]], max_requests: int,
-                max_grasps: int, answer_right: Callable) -> RobotEpisode:
+                max_grasps: int, answer_right: Callable,
+                on_decision: Callable[[RobotStep], None] | None = None) -> RobotEpisode:
     """Algorithm 4 with the robot on ``scene`` (rendered from ``spec``) for the requested type ``goal``.
     ``perceive(scene_now)`` detects and matches (the trained detector,
     :func:`~hrc_lab.grasp.observation.scene_nodes`); ``read(nodes, mask)`` is the solver's reading of every node for
-    a request; ``answer_right(nodes, goal, answer)`` scores a single-image answer against the rule."""
+    a request; ``answer_right(nodes, goal, answer)`` scores a single-image answer against the rule;
+    ``on_decision(step)`` sees each iteration's decision before the robot acts on it (a video's caption)."""
     cell.place_scene(scene, spec)
     steps: list[RobotStep] = []
     aside = 0
@@ -93,6 +95,8 @@ def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[o
                      "motion": 0.0},
         )
         steps.append(step)
+        if on_decision is not None:
+            on_decision(step)
         if answer.grasp is None:
             return RobotEpisode(goal, steps, answer.help and right, "" if answer.help and right else step.cause
                                 or "other")

@@ -25,15 +25,23 @@ class FrameRecorder:
 
     def step(self, action):
         result = self.cell.step(action)
+        self.tick()
+        return result
+
+    def tick(self) -> None:
+        """Count a control step the cell took and render every ``frame_skip``-th (for cells that step themselves,
+        e.g. :attr:`hrc_lab.env.robot.clutter_cell.ClutterCell.on_step`)."""
         self.__dict__["steps"] += 1
         if self.steps % self.frame_skip == 0:
             self.frames.append(self.frame())
-        return result
 
     def frame(self) -> np.ndarray:
         """The camera's RGB image now (rows top-down) with ``text`` in its top-left corner."""
         import cv2
 
+        # robosuite's render draws into whichever GL context is current: another renderer in the process (the
+        # clutter cell's scene camera) may have made its own current since
+        self.cell.sim._render_context_offscreen.gl_ctx.make_current()
         image = np.flipud(self.cell.sim.render(camera_name=self.camera, width=self.width, height=self.height)).copy()
         if self.text:
             cv2.putText(image, self.text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 3, cv2.LINE_AA)

@@ -442,8 +442,10 @@ def _cell(spec: ClutterSpec) -> _Cell:
     key = _mjcf(spec, slots)
     if key not in _CELLS:
         _CELLS[key] = _Cell(key, slots, spec.part_size, spec.image_size)
-        if len(_CELLS) == 1:  # registered after the GL context's own exit handler (EGL's eglTerminate): runs first
-            atexit.register(_close_renderers)
+    # the last exit handler registered, so it runs before every eglTerminate registered so far (MuJoCo's, and
+    # robosuite's once a robot cell renders videos in this process)
+    atexit.unregister(_close_renderers)
+    atexit.register(_close_renderers)
     return _CELLS[key]
 
 

@@ -26,12 +26,15 @@ Physics: robosuite's default 2 ms step, 20 Hz control.
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from hrc_lab.env.clutter.scenes import BASE_COLOURS, SceneCamera, import_mujoco
 from hrc_lab.env.clutter.spec import PART_TYPES, ClutterScene, ClutterSpec
+from hrc_lab.env.robot.settings import CELL_CAMERA
 
 import_mujoco()  # before robosuite does: MuJoCo with an off-screen GL (EGL, else OSMesa) for the scene camera
 # isort: off
@@ -76,11 +79,13 @@ class PickOutcome:
 class ClutterCell(ManipulationEnv):
     """See the module docstring. ``spec``: the clutter spec the scenes come from."""
 
-    def __init__(self, spec: ClutterSpec, seed: int | None = None) -> None:
+    def __init__(self, spec: ClutterSpec, seed: int | None = None, render: bool = False) -> None:
+        """``render``: build robosuite's off-screen renderer, for videos from :data:`CELL_CAMERA`."""
         self.spec = spec
         self.slots = [t for t in PART_TYPES for _ in range(spec.max_counts[t])]
         self.active: list[int] = []
         self.camera: SceneCamera | None = None
+        self.on_step: Callable[[], None] | None = None  # called after every control step the cell takes
         super().__init__(
             robots="UR5e",
             gripper_types=GRIPPER,
@@ -88,7 +93,7 @@ class ClutterCell(ManipulationEnv):
             initialization_noise=None,
             use_camera_obs=False,
             has_renderer=False,
-            has_offscreen_renderer=False,
+            has_offscreen_renderer=render,
             control_freq=20,
             horizon=100_000,
             ignore_done=True,
@@ -107,6 +112,9 @@ class ClutterCell(ManipulationEnv):
         robot.init_qpos = home
         arena = TableArena(table_full_size=TABLE_SIZE, table_offset=(0, 0, TABLE_TOP))
         arena.set_origin([0, 0, 0])
+        # facing the robot across the table, the clutter, tray and put-aside spots in view (videos only)
+        arena.worldbody.append(ET.Element("camera", name=CELL_CAMERA, pos="0.95 0 1.55",
+                                          xyaxes="0 1 0 -0.6 0 0.8"))
         self.parts = [
             BoxObject(name=f"part{k}", size=[v / 2 for v in self.spec.part_size[t]], rgba=(*BASE_COLOURS[t], 1),
                       density=1200, friction=(1.0, 0.005, 0.0001))
@@ -233,6 +241,8 @@ class ClutterCell(ManipulationEnv):
             action[3:6] = np.clip(ORIENTATION_GAIN * base.T @ self._orientation_error(), -1, 1)
             action[6] = grip
             self.step(action)
+            if self.on_step is not None:
+                self.on_step()
             if touched is not None:
                 touched.update(self._gripper_contacts())
 
