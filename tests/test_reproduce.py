@@ -38,11 +38,12 @@ def test_dry_run_prints_every_step(capsys):
     assert main(["ch6", "--dry-run"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert [line.split(": ", 1)[0] for line in lines] == [
-        "[1/5] sweep ch6/table_6_1",
-        "[2/5] sweep ch6/table_6_2_single",
-        "[3/5] sweep ch6/table_6_2_robot",
-        "[4/5] sweep ch6/table_6_3",
-        "[5/5] report ch6_grasp",
+        "[1/6] sweep ch6/table_6_1",
+        "[2/6] sweep ch6/table_6_2_single",
+        "[3/6] sweep ch6/table_6_3",
+        "[4/6] sweep ch6/table_6_2_robot",
+        "[5/6] report ch6_grasp",
+        "[6/6] report ch6_robot",
     ]
 
 
