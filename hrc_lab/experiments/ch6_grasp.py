@@ -288,7 +288,7 @@ def robot_video(ctx: RunContext, episode_of, scene: ClutterScene, spec: ClutterS
     from hrc_lab.env.robot.settings import CELL_CAMERA
     from hrc_lab.tamp.video import FrameRecorder, save_video
 
-    cell = ClutterCell(ctx.cfg.env, seed=ctx.seed, render=True)
+    cell = ClutterCell(spec, seed=ctx.seed, render=True)
     try:
         recorder = FrameRecorder(cell, CELL_CAMERA, 480, 360, frame_skip=2)
         cell.on_step = recorder.tick
