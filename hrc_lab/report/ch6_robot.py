@@ -66,10 +66,9 @@ def table_6_2_robot(runs: pd.DataFrame) -> Section:
     filmed = runs[runs.video_scene.notna()].sort_values("seed") if "video_scene" in runs else runs.iloc[:0]
     if len(filmed):  # the first successful episode of the protocol's video part count, filmed again from the side
         shown = filmed.iloc[0]
-        text += ["", f"The video ([robot_episode.mp4](ch6_grasp/robot_episode.mp4)): seed {shown.seed}, scene "
+        text += ["", f"The video (`robot_episode.mp4` and its strip, below): seed {shown.seed}, scene "
                      f"{int(shown.video_scene)} with {amount(runs, 'protocol.video_objects', 'parts')}, the first "
-                     "delivered episode of that count, with each iteration's decision as the caption:",
-                 "", "![robot episode](ch6_grasp/robot_episode_strip.jpg)"]
+                     "delivered episode of that count, with each iteration's decision as the caption."]
         artifacts = {name: (shown.run_id, f"videos/{name}")
                      for name in ("robot_episode.mp4", "robot_episode_strip.jpg")}
     return Section("Table 6.2 (robot row): Algorithm 4 with the robot", "\n".join(text), pd.DataFrame(records), {},
