@@ -384,8 +384,12 @@ def test_table_6_3_section_says_whose_data_it_read():
     markdown = SECTIONS["table_6_3"](runs).markdown
     assert re.search(r"\| GNN_Att \(ours\) \| 0.550 ± 0.050 \|\s+0.62\s+\| 0.750 ± 0.050\s+\| 0.850 ± 0.050", markdown)
     assert "our 427 trainval and 50 test rendered clutter scenes" in markdown and "not comparable" in markdown
-    theirs = SECTIONS["table_6_3"](runs.assign(written_by_hrc_lab=0.0, **{"param.env.vmrd_root": "/data/VMRD"}))
-    assert "the data set at `/data/VMRD`" in theirs.markdown
+    theirs = SECTIONS["table_6_3"](runs.assign(written_by_hrc_lab=0.0, classes=31.0,
+                                               **{"param.env.vmrd_root": "/data/VMRD", "param.env.image_size": "320"}))
+    assert "the data set at `/data/VMRD`" in theirs.markdown and "not comparable" not in theirs.markdown
+    assert "these runs read 31 classes from the data set's annotations" in theirs.markdown
+    assert "letterboxed to 320 px (`env.image_size`) square" in theirs.markdown
+    assert theirs.title == "Table 6.3: image-based accuracy (a data set in VMRD's layout)"
 
 
 def test_placement_oracle_section_reads_the_second_objects():
