@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene
+from hrc_lab.env.clutter.spec import PART_TYPES, ClutterObject, ClutterScene
 from hrc_lab.grasp.detection_metrics import detection_quality, match_detections
 from hrc_lab.grasp.detector import Detections, DetectorConfig, DetectorModule, ObjectDetector, scene_target
 from hrc_lab.grasp.detector_cache import detector_cache_key, load_or_train_detector
@@ -49,7 +49,7 @@ def test_config_validation_names_the_key():
 
 
 def test_detect_and_features_for_boxes_shapes():
-    detector = ObjectDetector(tiny_config())
+    detector = ObjectDetector(tiny_config(), PART_TYPES)
     detections = detector.detect(random_images())
     assert len(detections) == 2
     for det in detections:
@@ -65,16 +65,16 @@ def test_detect_and_features_for_boxes_shapes():
 
 
 def test_same_seed_same_weights():
-    a, b = ObjectDetector(tiny_config()), ObjectDetector(tiny_config())
+    a, b = ObjectDetector(tiny_config(), PART_TYPES), ObjectDetector(tiny_config(), PART_TYPES)
     assert all(torch.equal(x, y) for x, y in zip(a.state_dict().values(), b.state_dict().values()))
 
 
 @pytest.mark.filterwarnings("ignore:.*self.trainer.* reference is not registered")
 def test_one_training_step_has_finite_loss():
-    detector = ObjectDetector(tiny_config())
+    detector = ObjectDetector(tiny_config(), PART_TYPES)
     module = DetectorModule(detector.model, tiny_config())
     module.train()
-    images, targets = zip(*(scene_target(toy_scene(s)) for s in range(2)))
+    images, targets = zip(*(scene_target(toy_scene(s), PART_TYPES) for s in range(2)))
     loss = module.training_step((images, targets), 0)
     assert torch.isfinite(loss)
     loss.backward()
@@ -96,22 +96,25 @@ def test_detection_quality_of_perfect_detections():
     det = Detections(gt.copy(), ["a", "b"], np.array([0.9, 0.8], np.float32), torch.zeros(2, 4))
     quality = detection_quality([det], [gt], [["a", "b"]])
     assert quality["recall"] == quality["precision"] == quality["scene_exact"] == 1.0
-    assert quality["ap_a"] == quality["ap_b"] == 1.0 and np.isnan(quality["ap_c"]) and quality["map"] == 1.0
+    assert quality["ap_a"] == quality["ap_b"] == 1.0 and quality["map"] == 1.0
+    assert "ap_c" not in quality  # the classes scored are those of the ground truth and the detections
 
 
 def test_load_or_train_detector_caches(tmp_path):
     cfg = tiny_config()
     scenes = [toy_scene(s) for s in range(2)]
-    key = detector_cache_key(cfg, [s.seed for s in scenes])
-    assert key != detector_cache_key(cfg, [1, 0]) and key != detector_cache_key(tiny_config(lr=1e-4), [0, 1])
+    key = detector_cache_key(cfg, PART_TYPES, [s.seed for s in scenes])
+    assert key != detector_cache_key(cfg, PART_TYPES, [1, 0])
+    assert key != detector_cache_key(tiny_config(lr=1e-4), PART_TYPES, [0, 1])
+    assert key != detector_cache_key(cfg, ("a", "b"), [0, 1])
 
     def trainer_factory():
         return pl.Trainer(accelerator="cpu", max_epochs=1, logger=False, enable_checkpointing=False,
                           enable_progress_bar=False, enable_model_summary=False)
 
-    trained, info = load_or_train_detector(cfg, scenes, trainer_factory, tmp_path, key)
+    trained, info = load_or_train_detector(cfg, PART_TYPES, scenes, trainer_factory, tmp_path, key)
     assert not info["cached"] and info["train_seconds"] > 0 and (tmp_path / f"detector_{key}.pt").exists()
-    loaded, info2 = load_or_train_detector(cfg, scenes, trainer_factory, tmp_path, key)
+    loaded, info2 = load_or_train_detector(cfg, PART_TYPES, scenes, trainer_factory, tmp_path, key)
     assert info2["cached"] and info2["train_seconds"] == info["train_seconds"]
     image = [scenes[0].image]
     assert torch.equal(trained.features_for_boxes(image, [scenes[0].boxes])[0],
@@ -131,5 +134,6 @@ def test_context_scale_is_validated_and_shares_the_trained_network():
     with pytest.raises(ValueError, match="grasp.detector.context_scale"):
         tiny_config(context_scale=0.5)
     seeds = [1, 2, 3]
-    assert detector_cache_key(tiny_config(), seeds) == detector_cache_key(tiny_config(context_scale=1.8), seeds)
-    assert detector_cache_key(tiny_config(), seeds) != detector_cache_key(tiny_config(width=8), seeds)
+    key = detector_cache_key(tiny_config(), PART_TYPES, seeds)
+    assert key == detector_cache_key(tiny_config(context_scale=1.8), PART_TYPES, seeds)
+    assert key != detector_cache_key(tiny_config(width=8), PART_TYPES, seeds)

@@ -117,7 +117,8 @@ def detector_cache(tmp_path):
     path = tmp_path / "detector_k.pt"
 
     def load():
-        return load_or_train_detector(cfg, [], lambda: pytest.fail("trained instead of loading"), tmp_path, "k")
+        return load_or_train_detector(cfg, ("a", "b", "c"), [], lambda: pytest.fail("trained instead of loading"),
+                                      tmp_path, "k")
 
     return path, load
 

@@ -12,7 +12,7 @@ from torch_geometric.loader import DataLoader
 
 from hrc_lab.config import validate_config
 from hrc_lab.env.clutter.rule import solution_types
-from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene
+from hrc_lab.env.clutter.spec import PART_TYPES, ClutterObject, ClutterScene
 from hrc_lab.experiments.ch6_grasp import object_accuracy
 from hrc_lab.grasp import GRASPS
 from hrc_lab.grasp.configs import GraspSolverConfig
@@ -50,7 +50,7 @@ def test_ablation_weights():
 
 def test_scene_graph_node_features():
     boxes = np.array([[0, 0, 20, 20], [40, 40, 60, 80]], dtype=np.float32)
-    graph = scene_graph(torch.ones(2, 5), ["b", "c"], boxes, 100, np.array([False, True]))
+    graph = scene_graph(torch.ones(2, 5), ["b", "c"], boxes, 100, np.array([False, True]), PART_TYPES)
     assert graph.x.shape == (2, 5 + 3 + 1)
     assert graph.x[:, 5:].tolist() == [[0, 1, 0, 0], [0, 0, 1, 1]]  # one-hot label, then the request flag g_i
     assert graph.edge_index.shape == (2, 2)
@@ -58,9 +58,23 @@ def test_scene_graph_node_features():
 
 
 def test_vocabulary_round_trip():
-    vocab = SolutionVocabulary()
+    vocab = SolutionVocabulary(PART_TYPES)
     for tokens in (["grasp"], ["help"], ["move", "b"], ["move", "b", "and", "c"]):
         assert vocab.decode(vocab.encode(tokens)) == tokens
+    assert vocab.max_len == 5  # "move b and c" and <end>
+
+
+def test_a_data_sets_classes_make_the_vocabulary_and_the_label_one_hot():
+    """VMRD-like classes (one with a space): every class is a word, the longest solution names all but one."""
+    classes = ("apple", "mug", "remote controller", "wallet")
+    vocab = SolutionVocabulary(classes)
+    tokens = ["move", "apple", "and", "remote controller", "and", "wallet"]
+    assert vocab.decode(vocab.encode(tokens)) == tokens and vocab.max_len == len(tokens) + 1
+    graph = scene_graph(torch.ones(2, 3), ["wallet", "mug"], np.array([[0, 0, 9, 9], [20, 0, 29, 9]]), 64,
+                        np.array([True, False]), classes)
+    assert graph.x[:, 3:].tolist() == [[0, 0, 0, 1, 1], [0, 1, 0, 0, 0]] and graph.label.tolist() == [3, 1]
+    with pytest.raises(ValueError, match=r"labels \['cup'\] are not among the classes"):
+        scene_graph(torch.ones(1, 3), ["cup"], np.array([[0, 0, 9, 9]]), 64, np.array([True]), classes)
 
 
 @pytest.mark.parametrize("decoder", ["lstm_att", "lstm"])
@@ -68,7 +82,7 @@ def test_decoder_learns_a_tiny_vocabulary(decoder):
     """Two graph kinds, told apart by the label of node 0, must decode to two different solutions."""
     torch.manual_seed(0)
     cfg = GraspSolverConfig(hidden=32, layers=2, decoder=decoder, lstm_hidden=32)
-    vocab = SolutionVocabulary()
+    vocab = SolutionVocabulary(PART_TYPES)
     texts = {"a": ["move", "b", "and", "c"], "c": ["grasp"]}
     graphs = []
     for first in ("a", "c"):
@@ -78,12 +92,13 @@ def test_decoder_learns_a_tiny_vocabulary(decoder):
             np.array([[0, 0, 10, 10], [20, 0, 30, 10]]),
             64,
             np.array([True, False]),
+            PART_TYPES,
             graspable=torch.tensor([float(first == "c"), 1.0]),
             solution=torch.tensor([vocab.encode(texts[first]), vocab.encode(["grasp"])]),
             labelled=torch.tensor([True, False]),
         )
         graphs.append(graph)
-    net = GraspSolverNet(graphs[0].x.shape[1], vocab, cfg)
+    net = GraspSolverNet(graphs[0].x.shape[1], len(PART_TYPES), vocab, cfg)
     module = GraspSolverModule(net, GraspSolverConfig(lr=1e-2, schedule="constant"))  # no Trainer here
     optimiser = module.configure_optimizers()
     batch = next(iter(DataLoader(graphs, batch_size=2)))
@@ -199,7 +214,7 @@ def test_relation_filter_and_labels_of_gvmrn_rf():
     assert RELATIONS[relation_label(nodes, 0, 2)] == "none"
     nodes.rule_blockers = [[2], [], [0], []]  # now the two a's are in each other's way
     assert RELATIONS[relation_label(nodes, 0, 2)] == "help"
-    graph = RelationSolver(None, GraspSolverConfig()).training_graph(nodes, {"a"})
+    graph = RelationSolver(None, GraspSolverConfig(), PART_TYPES).training_graph(nodes, {"a"})
     assert graph.x.shape == (len(pairs), 4 + 2 * 3 + 3)
     assert graph.labelled.tolist() == [pair[0] in (0, 2) for pair in pairs]  # relations of the requested a's only
 

@@ -35,6 +35,24 @@ def test_spec_rejects_impossible_orders():
         PackageToOrderSpec(n_objects=5, n_selected=3, n_slots=2)
 
 
+def test_pending_shuffle_puts_each_product_in_a_random_cell():
+    """Without it product i stays in cell i; with it the products take a permutation of the cells, so one product's
+    picking position spans the pending area."""
+    configuration = ((1, 2), (3, 0), (4, 1))
+    fixed, shuffled = PackageToOrderSpec(n_objects=5, n_selected=3), PackageToOrderSpec(n_objects=5, n_selected=3,
+                                                                                        pending_shuffle=True)
+    cells = fixed.nominal_pending()[:, 0]
+
+    def cell_of_each_product(spec, seed):
+        x = sample_episode(spec, configuration, np.random.default_rng(seed)).positions[:, 0]
+        return np.abs(x[:, None] - cells[None, :]).argmin(axis=1)
+
+    assert all((cell_of_each_product(fixed, seed) == np.arange(5)).all() for seed in range(10))
+    drawn = np.array([cell_of_each_product(shuffled, seed) for seed in range(40)])
+    assert all(sorted(row) == list(range(5)) for row in drawn)  # a permutation: one product per cell
+    assert all(len(set(drawn[:, product])) == 5 for product in range(5))  # every product visits every cell
+
+
 def test_case1_follows_the_expert_task_structure():
     spec = PackageToOrderSpec(n_objects=5, n_selected=3)
     configuration = ((1, 2), (3, 0), (4, 1))  # products 2, 4, 5 go to slots 3, 1, 2

@@ -1,6 +1,6 @@
 """Data sets in VMRD v2's layout (Table 6.3): a VMRD-style annotation the test writes by hand, our scenes written
-and read back with the rule's labels, every malformed root or file named in its error, and the refusals before
-any training."""
+and read back with the rule's labels, every malformed root or file named in its error, 4:3 images letterboxed to
+the detector's square, and Table 6.3 end to end on a data set of other classes."""
 
 import numpy as np
 import pandas as pd
@@ -8,10 +8,10 @@ import pytest
 
 from hrc_lab.config import validate_config
 from hrc_lab.data.files import DataFileError
-from hrc_lab.data.vmrd import check_layout, read_vmrd, write_vmrd
+from hrc_lab.data.vmrd import check_layout, letterbox, read_vmrd, write_vmrd
 from hrc_lab.env.clutter.rule import blocker_solution, blockers
-from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene, ClutterSpec, VmrdSpec
-from hrc_lab.experiments.ch6_grasp import image_accuracy, readable_vmrd
+from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene, ClutterSpec
+from hrc_lab.experiments.ch6_grasp import dataset_classes, image_accuracy
 from hrc_lab.registry import ConfigError
 
 # VMRD's own conventions: 1-based inclusive boxes, node ids that need not start at 1, a .jpg image
@@ -126,14 +126,71 @@ def test_a_missing_or_incomplete_root_fails_the_config(tmp_path, compose_config)
     assert validate_config(compose_config("experiment=ch6/table_6_3")).env.vmrd_root is None
 
 
-def test_other_classes_or_image_sizes_are_refused_before_training(tmp_path):
-    daily_life = read_vmrd(write_layout(tmp_path), "trainval")
-    with pytest.raises(DataFileError, match=r"classes \['book', 'mug'\] are not part types"):
-        readable_vmrd(VmrdSpec(vmrd_root=str(tmp_path)), daily_life)
-    parts = read_vmrd(write_layout(tmp_path, MUG_ON_BOOK.replace("Book", "a").replace("mug", "b")), "trainval")
-    with pytest.raises(DataFileError, match=r"images are \[\(64, 64\)\] pixels; .*env.image_size=160"):
-        readable_vmrd(VmrdSpec(vmrd_root=str(tmp_path)), parts)
-    readable_vmrd(VmrdSpec(vmrd_root=str(tmp_path), image_size=64), parts)
+def test_a_4_to_3_image_is_letterboxed_to_the_detectors_square(tmp_path):
+    """64 x 56: padded at the bottom to 64 x 64, then halved: the boxes halve, the padding is black, the classes are the
+    data set's."""
+    import cv2
+
+    root = write_layout(tmp_path, MUG_ON_BOOK.replace("<height>64", "<height>56"))
+    cv2.imwrite(str(root / "JPEGImages" / "00001.jpg"), np.full((56, 64, 3), 200, np.uint8))
+    [image] = read_vmrd(root, "trainval", image_size=32)
+    assert image.scene.image.shape == (32, 32, 3) and image.scene.segmentation.shape == (32, 32)
+    assert image.scene.image[:28].min() > 150 and image.scene.image[28:].max() == 0  # rows 28-31: padding
+    np.testing.assert_allclose(image.scene.boxes, [[2, 4.5, 20, 25], [9.5, 9.5, 15, 16]])
+    assert image.children == [[1], []] and dataset_classes([image]) == ("book", "mug")
+    [same] = read_vmrd(root, "trainval", image_size=None)
+    assert letterbox(same, 64).scene.boxes.tolist() == same.scene.boxes.tolist()  # the long side already fits
+
+
+DAILY_CLASSES = ("book", "mug", "remote controller")
+
+
+def daily_life_layout(root, count: int = 8):
+    """``count`` 4:3 images in VMRD's layout, each a book with a mug on it (its child) and a remote controller
+    beside, drawn as coloured rectangles at random places; 6 for trainval, the rest for test."""
+    import cv2
+
+    rng = np.random.default_rng(0)
+    for folder in ("Annotations", "JPEGImages", "ImageSets/Main"):
+        (root / folder).mkdir(parents=True, exist_ok=True)
+    ids = []
+    for k in range(count):
+        image = np.full((96, 128, 3), 90, np.uint8)
+        x, y = int(rng.integers(4, 60)), int(rng.integers(4, 40))
+        boxes = {"book": (x, y, x + 44, y + 30), "mug": (x + 12, y + 8, x + 26, y + 22),
+                 "remote controller": (100, int(rng.integers(4, 60)), 118, 0)}
+        boxes["remote controller"] = (100, boxes["remote controller"][1], 118, boxes["remote controller"][1] + 30)
+        objects = []
+        for index, (name, colour) in enumerate(zip(DAILY_CLASSES, ((40, 40, 200), (200, 200, 40), (40, 200, 40)))):
+            x0, y0, x1, y1 = boxes[name]
+            cv2.rectangle(image, (x0, y0), (x1 - 1, y1 - 1), colour, thickness=-1)
+            children = "<num>2</num>" if name == "book" else ""
+            father = "<num>1</num>" if name == "mug" else ""
+            objects.append(f"<object><name>{name}</name><bndbox><xmin>{x0 + 1}</xmin><ymin>{y0 + 1}</ymin>"
+                           f"<xmax>{x1}</xmax><ymax>{y1}</ymax></bndbox><index>{index + 1}</index>"
+                           f"<father>{father}</father><children>{children}</children></object>")
+        image_id = f"{k + 1:05d}"
+        cv2.imwrite(str(root / "JPEGImages" / f"{image_id}.jpg"), image)
+        (root / "Annotations" / f"{image_id}.xml").write_text(
+            f"<annotation><size><width>128</width><height>96</height><depth>3</depth></size>{''.join(objects)}"
+            "</annotation>")
+        ids.append(image_id)
+    (root / "ImageSets" / "Main" / "trainval.txt").write_text("\n".join(ids[:6]) + "\n")
+    (root / "ImageSets" / "Main" / "test.txt").write_text("\n".join(ids[6:]) + "\n")
+    return root
+
+
+@pytest.mark.parametrize("grasp", ["grasp=gnn_att", "grasp=gvmrn_rf grasp.detector.mode=oracle"])
+def test_table_6_3_runs_on_a_data_set_of_other_classes_and_image_sizes(tmp_path, run_job, grasp):
+    """The thesis' Table 6.3 command on a user's VMRD-layout copy: its classes (one with a space) become the
+    detector's and the solver's, its 4:3 images are letterboxed, and the run finishes with image-based accuracy."""
+    root = daily_life_layout(tmp_path / "VMRD")
+    job = run_job("experiment=ch6/table_6_3", f"env.vmrd_root={root}", *grasp.split(), "hydra.mode=RUN",
+                  "trainer.max_epochs=1", "grasp.steps=2", "grasp.detector.steps=2", "grasp.detector.width=4",
+                  "grasp.detector.fpn_channels=8", "grasp.detector.representation_size=16")
+    assert job.metrics["classes"] == 3 and job.metrics["trainval_images"] == 6 and job.metrics["test_images"] == 2
+    assert job.metrics["written_by_hrc_lab"] == 0 and 0 <= job.metrics["ia"] <= 1
+    assert job.run.info.status == "FINISHED" and job.run.data.metrics["ia"] == pytest.approx(job.metrics["ia"])
 
 
 def test_image_accuracy_needs_every_object_of_an_image_right():

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import hashlib
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -76,14 +76,36 @@ def image_ids(root: str | Path, split: str) -> list[str]:
     return ids
 
 
-def read_vmrd(root: str | Path, split: str) -> list[AnnotatedScene]:
-    """Every image of ``split`` with its annotation."""
+def read_vmrd(root: str | Path, split: str, image_size: int | None = None) -> list[AnnotatedScene]:
+    """Every image of ``split`` with its annotation; with ``image_size``, each one :func:`letterboxed <letterbox>`
+    to that square side (the detector's input)."""
     root = Path(root)
-    return [read_image(root, image_id) for image_id in image_ids(root, split)]
+    images = (read_image(root, image_id) for image_id in image_ids(root, split))
+    return [image if image_size is None else letterbox(image, image_size) for image in images]
+
+
+def letterbox(image: AnnotatedScene, size: int) -> AnnotatedScene:
+    """The image padded at its right or bottom to a square (black), then scaled to ``size`` x ``size`` px, with its
+    boxes scaled alike (VMRD's images are 4:3; ours are square already and come back unchanged)."""
+    import cv2
+
+    scene = image.scene
+    height, width = scene.image.shape[:2]
+    if height == width == size:
+        return image
+    side = max(height, width)
+    square = np.zeros((side, side, 3), dtype=scene.image.dtype)
+    square[:height, :width] = scene.image
+    interpolation = cv2.INTER_AREA if size < side else cv2.INTER_LINEAR
+    pixels = np.ascontiguousarray(cv2.resize(square, (size, size), interpolation=interpolation))
+    scale = size / side
+    objects = [replace(obj, box=np.asarray(obj.box, dtype=np.float32) * np.float32(scale)) for obj in scene.objects]
+    resized = replace(scene, image=pixels, objects=objects, segmentation=np.full((size, size), -1, dtype=np.int32))
+    return replace(image, scene=resized)
 
 
 def read_image(root: Path, image_id: str) -> AnnotatedScene:
-    """One image and its ``Annotations/<id>.xml``."""
+    """One image and its ``Annotations/<id>.xml``, at the image's own size."""
     import cv2
 
     path = root / "Annotations" / f"{image_id}.xml"

@@ -19,7 +19,7 @@ from tqdm import tqdm
 
 from hrc_lab.cache import cache_key, cached
 from hrc_lab.env.clutter.rule import iterative_solution
-from hrc_lab.env.clutter.spec import ClutterScene, ClutterSpec
+from hrc_lab.env.clutter.spec import PART_TYPES, ClutterScene, ClutterSpec
 from hrc_lab.experiments.context import RunContext
 from hrc_lab.grasp import GRASPS
 from hrc_lab.grasp.detection_metrics import detection_quality
@@ -41,12 +41,13 @@ def scene_set(ctx: RunContext, spec: ClutterSpec, stream: int, count: int) -> li
     return load_scenes(cached(path, lambda p: save_scenes(p, generate_scenes(spec, seeds, progress=True))))
 
 
-def detector_for(ctx: RunContext, train_scenes: list[ClutterScene]):
-    """The detector trained on the training scenes, from the cache when another job already trained it."""
+def detector_for(ctx: RunContext, train_scenes: list[ClutterScene], classes: tuple[str, ...]):
+    """The detector of ``classes`` trained on the training scenes, from the cache when another job already trained
+    it."""
     cfg = ctx.cfg.grasp.detector
-    key = detector_cache_key(cfg, [s.seed for s in train_scenes])
+    key = detector_cache_key(cfg, classes, [s.seed for s in train_scenes])
     cache_dir = Path(ctx.cfg.paths.runs_dir) / "cache" / "ch6"
-    return load_or_train_detector(cfg, train_scenes, lambda: ctx.trainer("detector/"), cache_dir, key)
+    return load_or_train_detector(cfg, classes, train_scenes, lambda: ctx.trainer("detector/"), cache_dir, key)
 
 
 def random_request(rng: np.random.Generator, types: list[str], k: int | None = None) -> set[str] | None:
@@ -118,15 +119,16 @@ def iterative_correct(spec: ClutterSpec, nodes: SceneNodes, goal_type: str, answ
 
 
 def prepare(ctx: RunContext, train: list[ClutterScene] | None = None,
-            train_blockers: list[list[list[int]]] | None = None):
-    """The detector and the solver trained on ``train`` (default: the protocol's rendered training scenes, labelled
-    by the rule; else a data set's scenes with their ``train_blockers``, :func:`scene_nodes`)."""
+            train_blockers: list[list[list[int]]] | None = None, classes: tuple[str, ...] = PART_TYPES):
+    """The detector and the solver of ``classes`` trained on ``train`` (default: the protocol's rendered training
+    scenes of our part types, labelled by the rule; else a data set's scenes with their ``train_blockers``,
+    :func:`scene_nodes`, and its classes)."""
     spec, protocol, cfg = ctx.cfg.env, ctx.cfg.protocol, ctx.cfg.grasp
     train = scene_set(ctx, spec, TRAIN, protocol.train_images) if train is None else train
     start = time.perf_counter()
-    detector, info = detector_for(ctx, train)
+    detector, info = detector_for(ctx, train, classes)
     ctx.tracker.log_metrics({f"detector_{k}": float(v) for k, v in info.items() if isinstance(v, int | float)})
-    solver = GRASPS.build(cfg, spec=spec, seed=ctx.seed)
+    solver = GRASPS.build(cfg, spec=spec, classes=classes, seed=ctx.seed)
     train_nodes = scene_nodes(spec, train, detector, cfg.detector, solver.needs_union_features, train_blockers)
     rng = ctx.rng(61)
     requests = [random_request(rng, n.labels or n.scene.types) for n in train_nodes]
@@ -322,23 +324,9 @@ def vmrd_root(ctx: RunContext) -> Path:
     return cached(path, lambda partial: write_vmrd(partial, splits, children))
 
 
-def readable_vmrd(spec, scenes) -> None:
-    """Refuse, before any training, a data set our Ch.6 models cannot read: classes that are not part types (the
-    detector's classes and the solver's vocabulary are a, b, c) or images that are not ``env.image_size`` square
-    (the detector does not resize)."""
-    from hrc_lab.data.files import DataFileError
-    from hrc_lab.env.clutter.spec import PART_TYPES
-
-    classes = sorted({t for a in scenes for t in a.scene.types} - set(PART_TYPES))
-    if classes:
-        raise DataFileError(
-            f"{spec.vmrd_root}: classes {classes[:8]}{' ...' if len(classes) > 8 else ''} are not part types "
-            f"{list(PART_TYPES)}: the Ch.6 detector and solver are built for those; a data set of other classes "
-            "(VMRD's 31) needs class-generic heads, which hrc_lab does not have yet")
-    sizes = {a.scene.image.shape[:2] for a in scenes}
-    if sizes != {(spec.image_size, spec.image_size)}:
-        raise DataFileError(f"{spec.vmrd_root}: images are {sorted(sizes)} pixels; the detector reads them unresized "
-                            f"at env.image_size={spec.image_size} (square)")
+def dataset_classes(images) -> tuple[str, ...]:
+    """The classes of a data set's images, sorted: the detector's classes and the solver's object labels."""
+    return tuple(sorted({t for a in images for t in a.scene.types}))
 
 
 def image_accuracy(outcomes: pd.DataFrame, objects: list[int]) -> dict[str, float]:
@@ -354,17 +342,17 @@ def image_accuracy(outcomes: pd.DataFrame, objects: list[int]) -> dict[str, floa
 def table_6_3(ctx: RunContext) -> dict[str, float]:
     from hrc_lab.data.vmrd import read_vmrd
 
-    root = vmrd_root(ctx)
-    train, test = read_vmrd(root, "trainval"), read_vmrd(root, "test")
-    readable_vmrd(ctx.cfg.env, train + test)
-    spec, _, detector, solver, metrics = prepare(ctx, [a.scene for a in train], [a.children for a in train])
+    root, size = vmrd_root(ctx), ctx.cfg.env.image_size
+    train, test = read_vmrd(root, "trainval", size), read_vmrd(root, "test", size)
+    classes = dataset_classes(train + test)
+    spec, _, detector, solver, metrics = prepare(ctx, [a.scene for a in train], [a.children for a in train], classes)
     test_scenes = [a.scene for a in test]
     nodes = scene_nodes(spec, test_scenes, detector, ctx.cfg.grasp.detector, solver.needs_union_features,
                         [a.children for a in test])
     outcomes = part_outcomes(solver, nodes, [set(s.types) for s in test_scenes])  # every object of every image
     objects = [len(s.objects) for s in test_scenes]
     metrics |= image_accuracy(outcomes, objects) | detector_metrics(ctx, detector, test_scenes)
-    metrics |= {"trainval_images": float(len(train)), "test_images": float(len(test)),
+    metrics |= {"trainval_images": float(len(train)), "test_images": float(len(test)), "classes": float(len(classes)),
                 "written_by_hrc_lab": float(ctx.cfg.env.vmrd_root is None)}
     images = outcomes.groupby("scene").correct.all().rename("correct").reset_index()
     images["image_id"] = [test[k].image_id for k in images.scene]

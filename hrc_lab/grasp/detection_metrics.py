@@ -10,7 +10,6 @@ import numpy as np
 import torch
 from torchvision.ops import box_iou
 
-from hrc_lab.env.clutter.spec import PART_TYPES
 from hrc_lab.grasp.detector import Detections
 
 
@@ -70,10 +69,12 @@ def _average_precision(scores: np.ndarray, hits: np.ndarray, n_gt: int) -> float
 
 def detection_quality(detections: Sequence[Detections], gt_boxes: Sequence, gt_types: Sequence[Sequence[str]],
                       iou: float = 0.5, score_threshold: float = 0.5) -> dict[str, float]:
-    """Per class and overall: AP at ``iou`` over all given detections (detect with a low threshold for it), and
-    precision and recall of the detections scoring >= ``score_threshold``. Also the fraction of scenes whose
-    parts are all detected at that threshold with no extra detection (``scene_exact``)."""
-    per_class = {t: {"scores": [], "hits": [], "n_gt": 0, "tp": 0, "n_pred": 0} for t in PART_TYPES}
+    """Per class (each class of the ground truth or the detections) and overall: AP at ``iou`` over all given
+    detections (detect with a low threshold for it), and precision and recall of the detections scoring >=
+    ``score_threshold``. Also the fraction of scenes whose parts are all detected at that threshold with no extra
+    detection (``scene_exact``)."""
+    classes = sorted({t for types in gt_types for t in types} | {t for det in detections for t in det.labels})
+    per_class = {t: {"scores": [], "hits": [], "n_gt": 0, "tp": 0, "n_pred": 0} for t in classes}
     exact = []
     for det, boxes, types in zip(detections, gt_boxes, gt_types):
         types = list(types)
@@ -84,7 +85,7 @@ def detection_quality(detections: Sequence[Detections], gt_boxes: Sequence, gt_t
         for label, score, hit in zip(det.labels, det.scores, hits):
             per_class[label]["scores"].append(score)
             per_class[label]["hits"].append(hit)
-        for t in PART_TYPES:
+        for t in classes:
             per_class[t]["n_gt"] += types.count(t)
             per_class[t]["tp"] += int(sum(m >= 0 for m, g in zip(match_conf, types) if g == t))
             per_class[t]["n_pred"] += sum(det.labels[i] == t for i in idx)

@@ -39,7 +39,7 @@ from torch.utils.data import Dataset
 from torchvision.models.detection import FasterRCNN
 from torchvision.ops import nms
 
-from hrc_lab.env.clutter.spec import PART_TYPES, ClutterScene
+from hrc_lab.env.clutter.spec import ClutterScene
 from hrc_lab.grasp.configs import DetectorConfig
 from hrc_lab.grasp.detector_model import build_faster_rcnn
 from hrc_lab.training import FixedStepDataModule, SupervisedModule, steps_per_epoch
@@ -73,21 +73,22 @@ def _image_tensor(image) -> torch.Tensor:
     return image.permute(2, 0, 1).float() / 255
 
 
-def scene_target(scene: ClutterScene, min_side: float = 1.0) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
-    """A scene as a training sample: the (3, H, W) uint8 image and its boxes and labels (1 + index in PART_TYPES).
+def scene_target(scene: ClutterScene, classes: Sequence[str],
+                 min_side: float = 1.0) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    """A scene as a training sample: the (3, H, W) uint8 image and its boxes and labels (1 + index in ``classes``).
     Parts whose visible box is under ``min_side`` px wide or high (hidden) are left out."""
     image = torch.as_tensor(scene.image).permute(2, 0, 1).contiguous()
     boxes = scene.boxes.reshape(-1, 4) if scene.objects else np.zeros((0, 4), np.float32)
     keep = ((boxes[:, 2] - boxes[:, 0]) >= min_side) & ((boxes[:, 3] - boxes[:, 1]) >= min_side)
-    labels = [PART_TYPES.index(t) + 1 for t, k in zip(scene.types, keep) if k]
+    labels = [classes.index(t) + 1 for t, k in zip(scene.types, keep) if k]
     target = {"boxes": torch.as_tensor(boxes[keep], dtype=torch.float32).reshape(-1, 4),
               "labels": torch.as_tensor(labels, dtype=torch.int64)}
     return image, target
 
 
 class _SceneDataset(Dataset):
-    def __init__(self, scenes: Sequence[ClutterScene]) -> None:
-        self.samples = [scene_target(s) for s in scenes]
+    def __init__(self, scenes: Sequence[ClutterScene], classes: Sequence[str]) -> None:
+        self.samples = [scene_target(s, classes) for s in scenes]
 
     def __len__(self) -> int:
         return len(self.samples)
@@ -140,15 +141,18 @@ class DetectorModule(SupervisedModule):
 
 
 class ObjectDetector(nn.Module):
-    """The Faster R-CNN of Fig. 6.1 (``model``): ``fit`` on scenes, then ``detect`` parts with their f_i. Saved and
-    loaded by :mod:`hrc_lab.grasp.detector_cache`."""
+    """The Faster R-CNN of Fig. 6.1 (``model``) for objects of ``classes`` (our part types, or a data set's):
+    ``fit`` on scenes, then ``detect`` objects with their f_i. Saved and loaded by
+    :mod:`hrc_lab.grasp.detector_cache`."""
 
-    def __init__(self, cfg: DetectorConfig) -> None:
+    def __init__(self, cfg: DetectorConfig, classes: Sequence[str]) -> None:
         super().__init__()
-        self.cfg = cfg
+        self.cfg, self.classes = cfg, tuple(classes)
+        if not self.classes or len(set(self.classes)) != len(self.classes):
+            raise ValueError(f"the detector's classes must be distinct and at least one, got {list(classes)}")
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(cfg.seed)
-            self.model = build_faster_rcnn(cfg)
+            self.model = build_faster_rcnn(cfg, len(self.classes))
 
     def fit(self, scenes: Sequence[ClutterScene], trainer: pl.Trainer) -> ObjectDetector:
         """Train on the scenes for about ``cfg.steps`` steps (split over ``trainer.max_epochs``); returns self in
@@ -158,7 +162,7 @@ class ObjectDetector(nn.Module):
         steps = steps_per_epoch(self.cfg.steps, trainer)
         torch.manual_seed(self.cfg.seed)  # RoI/anchor sampling and flips draw from the global generator
         generator = torch.Generator().manual_seed(self.cfg.seed)
-        data = FixedStepDataModule(_SceneDataset(scenes), self.cfg.batch_size, steps, generator=generator,
+        data = FixedStepDataModule(_SceneDataset(scenes, self.classes), self.cfg.batch_size, steps, generator=generator,
                                    collate_fn=_collate)
         trainer.fit(DetectorModule(self.model, self.cfg), datamodule=data)
         return self.eval()
@@ -199,7 +203,7 @@ class ObjectDetector(nn.Module):
         return [
             Detections(
                 boxes=r["boxes"].numpy().astype(np.float32).reshape(-1, 4),
-                labels=[PART_TYPES[int(k) - 1] for k in r["labels"]],
+                labels=[self.classes[int(k) - 1] for k in r["labels"]],
                 scores=r["scores"].numpy().astype(np.float32),
                 features=fi,
             )

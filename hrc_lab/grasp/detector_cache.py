@@ -19,20 +19,20 @@ from hrc_lab.grasp.configs import DetectorConfig
 from hrc_lab.grasp.detector import ObjectDetector
 
 
-def detector_cache_key(cfg: DetectorConfig, scene_seeds: Sequence[int]) -> str:
-    """A short hash of the config and the (ordered) seeds of the training scenes."""
+def detector_cache_key(cfg: DetectorConfig, classes: Sequence[str], scene_seeds: Sequence[int]) -> str:
+    """A short hash of the config, the classes and the (ordered) seeds of the training scenes."""
     # oracle and trained modes, with or without context features, share the network
     settings = {k: v for k, v in asdict(cfg).items() if k not in ("mode", "context_scale")}
-    return cache_key({"cfg": settings, "seeds": [int(s) for s in scene_seeds]}, length=16)
+    return cache_key({"cfg": settings, "classes": list(classes), "seeds": [int(s) for s in scene_seeds]}, length=16)
 
 
-def load_or_train_detector(cfg: DetectorConfig, scenes: Sequence[ClutterScene],
+def load_or_train_detector(cfg: DetectorConfig, classes: Sequence[str], scenes: Sequence[ClutterScene],
                            trainer_factory: Callable[[], pl.Trainer], cache_dir: str | os.PathLike,
                            key: str) -> tuple[ObjectDetector, dict]:
     """The detector trained on ``scenes``, from ``<cache_dir>/detector_<key>.pt`` if present, else trained and
     saved there (:func:`hrc_lab.cache.cached`: parallel jobs wait for the first). ``info``: train_seconds (of the
     original training), cached, path."""
-    detector = ObjectDetector(cfg)
+    detector = ObjectDetector(cfg, classes)
     trained: list[float] = []
 
     def train(partial: Path) -> None:
@@ -40,8 +40,8 @@ def load_or_train_detector(cfg: DetectorConfig, scenes: Sequence[ClutterScene],
         detector.fit(scenes, trainer_factory())
         trained.append(time.perf_counter() - start)
         # tensors and plain values only (asdict of the config: lists, numbers, strings), so it loads weights-only
-        torch.save({"state_dict": detector.model.state_dict(), "config": asdict(cfg), "train_seconds": trained[0],
-                    "n_scenes": len(scenes)}, partial)
+        torch.save({"state_dict": detector.model.state_dict(), "config": asdict(cfg), "classes": list(classes),
+                    "train_seconds": trained[0], "n_scenes": len(scenes)}, partial)
 
     path = cached(Path(cache_dir) / f"detector_{key}.pt", train)
     if trained:

@@ -31,7 +31,6 @@ from torchvision.models.resnet import BasicBlock
 from torchvision.ops import MultiScaleRoIAlign
 from torchvision.ops.feature_pyramid_network import FeaturePyramidNetwork
 
-from hrc_lab.env.clutter.spec import PART_TYPES
 from hrc_lab.grasp.configs import LEVELS, DetectorConfig
 
 
@@ -64,8 +63,8 @@ class SmallBackbone(nn.Module):
         return self.fpn(features)
 
 
-def build_faster_rcnn(cfg: DetectorConfig) -> FasterRCNN:
-    """torchvision's Faster R-CNN with the small backbone, background + the part types as classes."""
+def build_faster_rcnn(cfg: DetectorConfig, n_classes: int) -> FasterRCNN:
+    """torchvision's Faster R-CNN with the small backbone, background + ``n_classes`` object classes."""
     anchors = AnchorGenerator(
         sizes=tuple(tuple(int(s) for s in level) for level in cfg.anchor_sizes),
         aspect_ratios=(tuple(float(r) for r in cfg.aspect_ratios),) * len(LEVELS),
@@ -73,7 +72,7 @@ def build_faster_rcnn(cfg: DetectorConfig) -> FasterRCNN:
     roi_pool = MultiScaleRoIAlign(featmap_names=list(LEVELS), output_size=7, sampling_ratio=2)
     return FasterRCNN(
         SmallBackbone(cfg.width, cfg.blocks, cfg.fpn_channels),
-        num_classes=None,  # given by the predictor: background + the part types
+        num_classes=None,  # given by the predictor: background + the object classes
         min_size=cfg.image_size,
         max_size=cfg.image_size,
         image_mean=[0.5, 0.5, 0.5],
@@ -86,7 +85,7 @@ def build_faster_rcnn(cfg: DetectorConfig) -> FasterRCNN:
         rpn_batch_size_per_image=cfg.rpn_batch_size,
         box_roi_pool=roi_pool,
         box_head=TwoMLPHead(cfg.fpn_channels * 7 * 7, cfg.representation_size),
-        box_predictor=FastRCNNPredictor(cfg.representation_size, len(PART_TYPES) + 1),
+        box_predictor=FastRCNNPredictor(cfg.representation_size, n_classes + 1),
         box_score_thresh=cfg.score_threshold,
         box_nms_thresh=cfg.nms,
         box_detections_per_img=cfg.max_detections,

@@ -15,8 +15,6 @@ import numpy as np
 import torch
 from torch_geometric.data import Data
 
-from hrc_lab.env.clutter.spec import PART_TYPES
-
 MIN_DISTANCE = 1e-3  # two boxes with (almost) the same centre: cap the inverse distance
 
 
@@ -52,21 +50,26 @@ def scene_graph(
     boxes: np.ndarray,
     image_size: int,
     requested: np.ndarray,
+    classes: tuple[str, ...],
     mode: str = "inverse_distance",
     threshold: float = 0.16,
     **targets,
 ) -> Data:
-    """The graph of one scene and request: node features [f_i, one-hot l_i, g_i], weighted edges (Eq. 6.1).
+    """The graph of one scene and request: node features [f_i, one-hot l_i over ``classes``, g_i], weighted edges
+    (Eq. 6.1).
 
     ``targets`` are per-node tensors stored on the graph for training (graspability, solution tokens, a mask of the
     nodes that carry labels)."""
-    one_hot = torch.zeros(len(labels), len(PART_TYPES))
-    one_hot[torch.arange(len(labels)), [PART_TYPES.index(t) for t in labels]] = 1.0
+    unknown = sorted(set(labels) - set(classes))
+    if unknown:
+        raise ValueError(f"labels {unknown} are not among the classes {list(classes)}")
+    label = torch.tensor([classes.index(t) for t in labels], dtype=torch.long)
+    one_hot = torch.nn.functional.one_hot(label, len(classes)).float()
     centres = (np.asarray(boxes, dtype=np.float32).reshape(-1, 4) @ _CENTRE) / image_size
     request = torch.as_tensor(np.asarray(requested, dtype=np.float32)).reshape(-1, 1)
     return Data(
         x=torch.cat([features.float(), one_hot, request], dim=-1),
-        label=torch.tensor([PART_TYPES.index(t) for t in labels], dtype=torch.long),
+        label=label,
         edge_index=fully_connected(len(labels)),
         edge_weight=torch.as_tensor(edge_weights(centres, mode, threshold)),
         num_nodes=len(labels),

@@ -25,7 +25,7 @@ from torch import nn
 from torch_geometric.data import Data
 from torch_geometric.nn import GCNConv
 
-from hrc_lab.env.clutter.spec import PART_TYPES
+from hrc_lab.env.clutter.rule import move_tokens
 from hrc_lab.grasp.configs import GraspSolverConfig
 from hrc_lab.grasp.observation import SceneNodes
 from hrc_lab.grasp.solver import NodeReading, labelled_nodes
@@ -99,27 +99,27 @@ class RelationSolver:
 
     needs_union_features = True
 
-    def __init__(self, spec, cfg: GraspSolverConfig, seed: int = 0) -> None:
-        self.spec, self.cfg, self.seed = spec, cfg, seed
+    def __init__(self, spec, cfg: GraspSolverConfig, classes: tuple[str, ...], seed: int = 0) -> None:
+        self.spec, self.cfg, self.classes, self.seed = spec, cfg, tuple(classes), seed
         self.network: RelationNet | None = None
 
     def graph(self, nodes: SceneNodes, requested: np.ndarray, **targets) -> Data:
         pairs = relation_filter(nodes, self.cfg.distance_filter)
-        one_hot = torch.eye(len(PART_TYPES))
+        one_hot = torch.eye(len(self.classes))
         centres = torch.as_tensor((nodes.boxes[:, :2] + nodes.boxes[:, 2:]) / 2 / nodes.image_size)
         rows = [
             torch.cat(
                 [
                     nodes.union_features[(min(i, j), max(i, j))].float(),
-                    one_hot[PART_TYPES.index(nodes.labels[i])],
-                    one_hot[PART_TYPES.index(nodes.labels[j])],
+                    one_hot[self.classes.index(nodes.labels[i])],
+                    one_hot[self.classes.index(nodes.labels[j])],
                     torch.tensor([float(requested[i])]),
                     (centres[j] - centres[i]).float(),
                 ]
             )
             for i, j in pairs
         ]
-        feature_dim = self.cfg.detector.representation_size + 2 * len(PART_TYPES) + 3  # union-box f only
+        feature_dim = self.cfg.detector.representation_size + 2 * len(self.classes) + 3  # union-box f only
         x = torch.stack(rows) if rows else torch.zeros(0, feature_dim)
         links = [(a, b) for a, pa in enumerate(pairs) for b, pb in enumerate(pairs) if a != b and set(pa) & set(pb)]
         return Data(
@@ -170,7 +170,7 @@ class RelationSolver:
                 if i in helps:
                     nodes.append(NodeReading(0.0, ["help"]))
                 elif above[i]:
-                    nodes.append(NodeReading(0.0, ["move", *" and ".join(sorted(above[i])).split()]))
+                    nodes.append(NodeReading(0.0, move_tokens(above[i])))
                 else:
                     nodes.append(NodeReading(1.0, ["grasp"]))
             readings.append(nodes)

@@ -28,22 +28,20 @@ from torch_geometric.data import Data
 from torch_geometric.loader import DataLoader
 from torch_geometric.nn import GCNConv, GraphConv
 
-from hrc_lab.env.clutter.rule import VOCABULARY
-from hrc_lab.env.clutter.spec import PART_TYPES
+from hrc_lab.env.clutter.rule import longest_solution, solution_words
 from hrc_lab.grasp.configs import GraspSolverConfig
 from hrc_lab.grasp.graph import scene_graph
 from hrc_lab.grasp.observation import SceneNodes
 from hrc_lab.training import FixedStepDataModule, SupervisedModule, binary_accuracy, steps_per_epoch
 from hrc_lab.vocabulary import PAD, START, TokenVocabulary
 
-MAX_WORDS = 4  # "move b and c"
-
 
 class SolutionVocabulary(TokenVocabulary):
-    """The words of grasp solutions ("grasp", "move b and c", "help") and the control tokens."""
+    """The words of grasp solutions over objects of ``classes`` ("grasp", "move b and c", "help") and the control
+    tokens; long enough for a solution naming every class but one ("move b and c" for our parts a, b, c)."""
 
-    def __init__(self) -> None:
-        super().__init__(VOCABULARY, MAX_WORDS + 1)
+    def __init__(self, classes: tuple[str, ...]) -> None:
+        super().__init__(solution_words(classes), longest_solution(classes) + 1)
 
 
 class AttentionLSTMDecoder(nn.Module):
@@ -104,8 +102,9 @@ class AttentionLSTMDecoder(nn.Module):
 
 
 class GraspSolverNet(nn.Module):
-    def __init__(self, node_dim: int, vocab: SolutionVocabulary, cfg: GraspSolverConfig) -> None:
+    def __init__(self, node_dim: int, n_classes: int, vocab: SolutionVocabulary, cfg: GraspSolverConfig) -> None:
         super().__init__()
+        self.n_classes = n_classes
         self.input = nn.Sequential(nn.LayerNorm(node_dim), nn.Linear(node_dim, cfg.hidden), nn.ReLU())
         conv = (
             (lambda: GraphConv(cfg.hidden, cfg.hidden, aggr="add"))
@@ -114,7 +113,7 @@ class GraspSolverNet(nn.Module):
         )
         self.convs = nn.ModuleList(conv() for _ in range(cfg.layers))
         self.grasp_head = nn.Linear(cfg.hidden, 1)
-        self.decoder = AttentionLSTMDecoder(cfg.hidden + len(PART_TYPES) + 1, vocab, cfg)
+        self.decoder = AttentionLSTMDecoder(cfg.hidden + n_classes + 1, vocab, cfg)
 
     def encode(self, batch) -> tuple[torch.Tensor, torch.Tensor]:
         """Node embeddings Gamma (Eq. 6.2) and graspability logits (Eq. 6.3)."""
@@ -123,10 +122,9 @@ class GraspSolverNet(nn.Module):
             gamma = F.relu(conv(gamma, batch.edge_index, batch.edge_weight))
         return gamma, self.grasp_head(gamma).squeeze(-1)
 
-    @staticmethod
-    def decoder_input(gamma: torch.Tensor, label: torch.Tensor, p_grasp: torch.Tensor) -> torch.Tensor:
+    def decoder_input(self, gamma: torch.Tensor, label: torch.Tensor, p_grasp: torch.Tensor) -> torch.Tensor:
         """f' = [Gamma_i, l_i, P_gra] (Eq. 6.7)."""
-        return torch.cat([gamma, F.one_hot(label, len(PART_TYPES)).float(), p_grasp.unsqueeze(-1)], dim=-1)
+        return torch.cat([gamma, F.one_hot(label, self.n_classes).float(), p_grasp.unsqueeze(-1)], dim=-1)
 
 
 def labelled_nodes(batch) -> int:
@@ -170,13 +168,14 @@ class NodeReading:
 
 
 class GraspSolver:
-    """Trains the network on labelled scene graphs and reads graspability and solutions off new ones."""
+    """Trains the network on labelled scene graphs and reads graspability and solutions off new ones; ``classes``:
+    the object labels l_i (the detector's classes)."""
 
     needs_union_features = False
 
-    def __init__(self, spec, cfg: GraspSolverConfig, seed: int = 0) -> None:
-        self.spec, self.cfg, self.seed = spec, cfg, seed
-        self.vocab = SolutionVocabulary()
+    def __init__(self, spec, cfg: GraspSolverConfig, classes: tuple[str, ...], seed: int = 0) -> None:
+        self.spec, self.cfg, self.classes, self.seed = spec, cfg, tuple(classes), seed
+        self.vocab = SolutionVocabulary(self.classes)
         self.network: GraspSolverNet | None = None
 
     def graph(self, nodes: SceneNodes, requested: np.ndarray, **targets) -> Data:
@@ -187,6 +186,7 @@ class GraspSolver:
             nodes.boxes,
             nodes.image_size,
             requested,
+            self.classes,
             self.cfg.edges,
             self.cfg.distance_filter,
             **targets,
@@ -211,7 +211,7 @@ class GraspSolver:
         if not graphs:
             raise ValueError("no training graphs")
         torch.manual_seed(self.seed)
-        self.network = GraspSolverNet(graphs[0].x.shape[1], self.vocab, self.cfg)
+        self.network = GraspSolverNet(graphs[0].x.shape[1], len(self.classes), self.vocab, self.cfg)
         data = FixedStepDataModule(graphs, self.cfg.batch_size, steps_per_epoch(self.cfg.steps, trainer))
         trainer.fit(GraspSolverModule(self.network, self.cfg), datamodule=data)
 

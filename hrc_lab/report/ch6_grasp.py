@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from hrc_lab.grasp.diagnostics import FAILURE_CAUSES  # noqa: E402
-from hrc_lab.report.runs import amount, histories, run_tables, setting, setting_number, spread  # noqa: E402
+from hrc_lab.report.runs import amount, histories, keyed, run_tables, setting, setting_number, spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
 
@@ -234,10 +234,12 @@ def table_6_3(runs: pd.DataFrame) -> Section:
         "Image-based accuracy (IA, 6.4.2): a test image counts when every object in it is right: detected, its "
         "graspability right and, when it cannot be grasped, its decoded solution right (every object of the image "
         f"is requested). Data: {source}. Mean ± std over seeds {sorted(runs.seed.unique())}. The thesis ran VMRD v2 "
-        f"(31 daily-life classes, up to 5 objects per image, VMRN {thesis['vmrn']}); these machines cannot download "
-        "it, and the Ch.6 detector and solver are built for our part types a, b, c, so a VMRD root of other "
-        "classes is refused before any training. The numbers are therefore not comparable with the thesis' column "
-        "beside them: the protocol is the thesis', the data are ours.",
+        f"(31 daily-life classes, up to 5 objects per image, VMRN {thesis['vmrn']}); "
+        + ("these machines cannot download it, so the numbers are not comparable with the thesis' column beside "
+           "them: the protocol is the thesis', the data are ours." if written else
+           f"these runs read {_classes(runs)} classes from the data set's annotations (the detector's classes, the "
+           f"label one-hots and the solution words), its images letterboxed to {keyed(runs, 'env.image_size', 'px')} "
+           "square."),
         "",
         pd.DataFrame(rows).to_markdown(index=False),
     ]
@@ -245,8 +247,15 @@ def table_6_3(runs: pd.DataFrame) -> Section:
         most = thesis_results()["ch6"]["text"]["vmrd_max_objects_per_image"]
         text += ["", f"An image counts only when all of its objects are right, so IA falls with the object count "
                      f"(columns): our test images hold {counts[0]}–{counts[-1]} parts, VMRD's at most {most} objects."]
-    return Section("Table 6.3: image-based accuracy (our scenes in VMRD's layout)", "\n".join(text),
+    return Section("Table 6.3: image-based accuracy " + ("(our scenes in VMRD's layout)" if written else
+                                                        "(a data set in VMRD's layout)"), "\n".join(text),
                    pd.DataFrame(records))
+
+
+def _classes(runs: pd.DataFrame) -> str:
+    """How many classes the runs' data set has ("31"), from their ``classes`` metric."""
+    counts = sorted({int(n) for n in runs["classes"].dropna()}) if "classes" in runs else []
+    return " or ".join(map(str, counts)) if counts else "its"
 
 
 def _failures(runs: pd.DataFrame, counts: list[int]) -> list[str]:

@@ -27,11 +27,30 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from hrc_lab.env.clutter.spec import PART_TYPES, ClutterObject, ClutterScene, ClutterSpec
+from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene, ClutterSpec
 from hrc_lab.vocabulary import END, PAD, START
 
 GRASP, HELP, MOVE, AND = "grasp", "help", "move", "and"
-VOCABULARY = (PAD, START, END, GRASP, HELP, MOVE, AND, *PART_TYPES)
+
+
+def solution_words(classes: Iterable[str]) -> tuple[str, ...]:
+    """Every word of a solution over objects of ``classes`` (our part types, or a data set's classes), with the
+    decoders' control tokens."""
+    return (PAD, START, END, GRASP, HELP, MOVE, AND, *classes)
+
+
+def longest_solution(classes: Iterable[str]) -> int:
+    """Words of the longest solution: "move t1 and t2 ..." naming every class but the blocked object's own."""
+    return max(1, 2 * (len(tuple(classes)) - 1))
+
+
+def move_tokens(kinds: Iterable[str]) -> list[str]:
+    """``["move", t1, "and", t2, ...]`` for the distinct ``kinds`` in sorted order (a class may contain spaces: one
+    token each)."""
+    tokens = [MOVE]
+    for k, kind in enumerate(sorted(set(kinds))):
+        tokens += [kind] if k == 0 else [AND, kind]
+    return tokens
 
 FINGER_REACH = 1.0  # m above the part's top: the finger (and the gripper above it) comes from far above
 OVERLAP_TOLERANCE = 1e-6  # m: boxes that merely touch do not intersect
@@ -173,13 +192,10 @@ def blocker_solution(scene: ClutterScene, i: int, found: list[int]) -> list[str]
     """The solution tokens of part ``i`` whose blockers are ``found`` (the rule's, or a data set's annotation)."""
     if not found:
         return [GRASP]
-    kinds = sorted({scene.objects[j].type for j in found})
+    kinds = {scene.objects[j].type for j in found}
     if scene.objects[i].type in kinds:
         return [HELP]
-    tokens = [MOVE, kinds[0]]
-    for kind in kinds[1:]:
-        tokens += [AND, kind]
-    return tokens
+    return move_tokens(kinds)
 
 
 def _rests_on(scene: ClutterScene, i: int, j: int) -> bool:

@@ -113,8 +113,8 @@ class ClutterSpec:
 class VmrdSpec(ClutterSpec):
     """A data set in VMRD v2's on-disk layout (``conf/env/vmrd.yaml``, Table 6.3; :mod:`hrc_lab.data.vmrd`):
     ``vmrd_root`` names it. Without one, the clutter scenes of this spec (Table 6.1's) are written in that layout
-    and read back, so the protocol runs the same way on both. The images must be ``image_size`` pixels square and
-    their classes part types (the Ch.6 detector and solver are built for a, b and c)."""
+    and read back, so the protocol runs the same way on both. Images of any size are letterboxed to ``image_size``
+    pixels square; the data set's classes (VMRD's 31, or our a, b, c) are the detector's and the solver's."""
 
     vmrd_root: str | None = None
 

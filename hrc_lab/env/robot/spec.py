@@ -32,7 +32,8 @@ PICK, PLACE = 0, 1
 @dataclass(frozen=True)
 class PackageToOrderSpec:
     """Geometry and order size of one n-of-m experiment. Lengths in metres, world frame (z up, table top at
-    ``table_z``). Each product has its own pending cell along x; positions jitter inside the cell."""
+    ``table_z``). Each product has its own pending cell along x (or, with ``pending_shuffle``, a random one per
+    episode); positions jitter inside the cell."""
 
     n_objects: int = 5  # m
     n_selected: int = 4  # n
@@ -42,6 +43,10 @@ class PackageToOrderSpec:
     pending_origin: tuple[float, float] = (-0.16, -0.30)  # nominal x-y of product 1
     pending_spacing: float = 0.08  # along x between neighbouring products' cells
     pick_jitter: tuple[float, float] = (0.015, 0.075)  # +-x, +-y around a product's nominal position
+    # each episode puts the products in a random permutation of the pending cells (then jitters them), so a
+    # product's picking position spans the whole pending area: one reading of Table 4.1's "positions randomly
+    # initialised within the pending area" (4.4.1) and of 4.4.3's 0.3 m in x. False: product i stays in cell i
+    pending_shuffle: bool = False
     box_center: tuple[float, float] = (0.0, 0.30)
     # +-x, +-y of the whole box: the reasoning experiments keep it fixed (thesis 4.4.1: object positions vary); the
     # thesis' motion module handles up to 0.175, 0.1
@@ -154,7 +159,10 @@ def sample_episode(
         raise ValueError(f"case must be 1 or 2, got {case}")
     m = spec.n_objects
     jitter = np.asarray(spec.pick_jitter)
-    xy = spec.nominal_pending() + rng.uniform(-jitter, jitter, size=(m, 2))
+    cells = spec.nominal_pending()
+    if spec.pending_shuffle:
+        cells = cells[rng.permutation(m)]
+    xy = cells + rng.uniform(-jitter, jitter, size=(m, 2))
     positions = np.column_stack([xy, np.full(m, spec.table_z + spec.product_size / 2)])
     box = np.asarray(spec.box_center) + rng.uniform(-1, 1, size=2) * np.asarray(spec.box_jitter)
     slot_xy = box + spec.slot_offsets()
