@@ -354,6 +354,7 @@ def test_table_6_2_section_gives_the_failure_causes_and_answer_lengths(monkeypat
     monkeypatch.setattr(ch6_grasp, "run_tables", lambda runs, name: cases if name == "table_6_2_single" else None)
     markdown = SECTIONS["table_6_2_single"](runs).markdown
     assert "| graspability    | 0.150 ± 0.050" in markdown
+    assert "acted on in the robosuite cell) is in [ch6_robot.md](ch6_robot.md)" in markdown
     assert re.search(r"\|\s+3 \|\s+4 \|\s+1.25 \|\s+0.75 \|\s+0.25 \|\s+1.5 \|\s+0.5 \|", markdown)
     assert "Why answers are wrong" not in SECTIONS["table_6_2_single"](runs.drop(columns="fail_detection_3")).markdown
 

@@ -194,7 +194,8 @@ def table_6_2_single(runs: pd.DataFrame) -> Section:
         "request, until a graspable part or help. Right when the final grasp is a part the labelling rule finds "
         "graspable among the requested parts (or, if none is, among those the rule's own iteration reaches), or "
         f"when both end in help. Mean ± std over seeds {sorted(runs.seed.unique())}; thesis (single image, 10 "
-        "cases per count, checked by hand) in brackets.",
+        "cases per count, checked by hand) in brackets. The robot row (the same scenes and requests, acted on "
+        "in the robosuite cell) is in [ch6_robot.md](ch6_robot.md) (`hrc-lab-report ch6_robot`).",
         "",
         pd.DataFrame(rows).to_markdown(index=False),
     ]
