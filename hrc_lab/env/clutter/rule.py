@@ -31,6 +31,8 @@ from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene, ClutterSpec
 from hrc_lab.vocabulary import END, PAD, START
 
 GRASP, HELP, MOVE, AND = "grasp", "help", "move", "and"
+FINGER_REACH = 1.0  # m above the part's top: the finger (and the gripper above it) comes from far above
+OVERLAP_TOLERANCE = 1e-6  # m: boxes that merely touch do not intersect
 
 
 def solution_words(classes: Iterable[str]) -> tuple[str, ...]:
@@ -51,9 +53,6 @@ def move_tokens(kinds: Iterable[str]) -> list[str]:
     for k, kind in enumerate(sorted(set(kinds))):
         tokens += [kind] if k == 0 else [AND, kind]
     return tokens
-
-FINGER_REACH = 1.0  # m above the part's top: the finger (and the gripper above it) comes from far above
-OVERLAP_TOLERANCE = 1e-6  # m: boxes that merely touch do not intersect
 
 
 def rotation_matrix(quaternion: np.ndarray) -> np.ndarray:
