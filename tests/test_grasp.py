@@ -311,6 +311,7 @@ def test_grasp_experiment_end_to_end(experiment, overrides, run_job):
     assert job.run.data.metrics[key] == pytest.approx(job.metrics[key], nan_ok=True)
 
 
+@pytest.mark.slow  # ~110 s alone (robosuite episode filmed again); CI runs it in its slow step
 def test_the_robot_row_end_to_end_films_its_delivered_episode(run_job):
     """Table 6.2's robot row with ground-truth boxes on seed 0's first 3-part scene: the episode (it delivers on the
     second grasp) lands in MLflow, then is filmed again with its captions."""
