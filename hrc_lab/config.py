@@ -55,7 +55,6 @@ class LoggerConfig:
 LOGGERS = Registry("logger")
 LOGGERS.register("mlflow", LoggerConfig, "hrc_lab.tracking:RunTracker")
 
-LR_SCHEDULES = ("constant", "cosine")  # hrc_lab.training.SupervisedModule's learning-rate schedules
 
 
 @dataclass

@@ -28,7 +28,7 @@ from torch.utils.data import DataLoader, Dataset, RandomSampler, TensorDataset
 from torchmetrics.functional.classification import binary_accuracy as torchmetrics_binary_accuracy
 from torchmetrics.functional.classification import multiclass_accuracy
 
-from hrc_lab.config import LR_SCHEDULES
+from hrc_lab.schedules import LR_SCHEDULES
 
 
 class Trainer(pl.Trainer):

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from hrc_lab.config import LR_SCHEDULES
 from hrc_lab.registry import Registry
+from hrc_lab.schedules import LR_SCHEDULES
 
 GRASPS = Registry("grasp")
 
