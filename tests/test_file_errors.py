@@ -146,3 +146,6 @@ def test_model_files_with_the_wrong_content(detector_cache):
     torch.save({"state_dict": {"w": torch.zeros(3)}, "train_seconds": 1.0}, path)
     with raises(path, "its weights do not fit the network of this config"):
         load()
+    torch.save({"state_dict": {}, "train_seconds": 1.0, "classes": ["book", "mug"]}, path)
+    with raises(path, r"a detector of the classes \['book', 'mug'\], not of \['a', 'b', 'c'\]"):
+        load()

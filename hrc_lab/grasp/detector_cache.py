@@ -52,9 +52,12 @@ def load_or_train_detector(cfg: DetectorConfig, classes: Sequence[str], scenes: 
 
 def _load_cached(path: Path, detector: ObjectDetector) -> float:
     """Load the weights :func:`load_or_train_detector` saved at ``path`` into ``detector``; the original training
-    time. :class:`DataFileError` when the file is unreadable or not such a checkpoint."""
+    time. :class:`DataFileError` when the file is unreadable, not such a checkpoint, or one of other classes."""
     saved = load_torch(path)
     if not isinstance(saved, dict) or not {"state_dict", "train_seconds"} <= saved.keys():
         raise DataFileError(f"{path}: not a detector checkpoint of hrc_lab (no 'state_dict' and 'train_seconds')")
+    if "classes" in saved and tuple(saved["classes"]) != detector.classes:
+        raise DataFileError(f"{path}: a detector of the classes {list(saved['classes'])}, not of "
+                            f"{list(detector.classes)}")
     load_weights(path, detector.model, saved["state_dict"])
     return saved["train_seconds"]
