@@ -33,6 +33,9 @@ JOBLIB = "hydra/launcher=joblib"
 
 # Steps no report table reads, run after the topic's own sweeps (hrc-lab arguments).
 EXTRA_SWEEPS: dict[str, list[tuple[str, ...]]] = {
+    "ch4_reasoning": [  # Fig. 4.7's variants of ours: their runs land in ch4/fig_4_7 (split to keep sweeps <= 45 min)
+        ("experiment=ch4/fig_4_7_variants", JOBLIB),
+    ],
     "data_demonstrations": [  # one rendered demonstration per cell, copied to reports/videos/ (the report links them)
         ("experiment=data/render_demo", "env=package_to_order_4of5"),
         ("experiment=data/render_demo", "env=package_to_order_3of5", "env.sim.case=2"),

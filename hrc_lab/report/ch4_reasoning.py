@@ -138,7 +138,9 @@ def fig_4_7(runs: pd.DataFrame) -> Section:
         "Success rate over the training ratio λ. CASE 1: unseen goal configurations (selections never trained on; "
         "at λ = 1 every configuration is seen, with new positions). CASE 2: "
         f"{amount(runs, 'protocol.case2_tests', 'human-intervention scenarios')} of random configurations. "
-        f"Mean ± std over seeds {sorted(runs.seed.unique())}.",
+        f"Mean ± std over seeds {sorted(runs.seed.unique())}."
+        + (" The rows of ours' variants come from `hrc-lab experiment=ch4/fig_4_7_variants hydra/launcher=joblib`."
+           if any(m.startswith("ours_") for m in methods) else ""),
         "",
         "Thesis statements: CASE 1, ours reaches 1.0 on unseen configurations at λ = 0.6 in 3of5 "
         f"({thesis['case1_ours_unseen_sr_at_lambda_0.6_3of5']}) and in 4of5 handles "
