@@ -220,6 +220,29 @@ def test_auto_suction_acts_with_the_joints_only_and_grips_what_the_cup_touches()
     auto.close()
 
 
+def test_the_expert_delivers_the_part_at_its_goal_yaw_within_rl_delta_r():
+    """With 3.3's wrist-3 action, the expert turns wrist 3 with the base, so the held part keeps its yaw and
+    Eq. 3.6 over [x, y, z, psi] is met at delta_r = 0.01 (3.4.3). Without the wrist-3 rule the part arrived turned
+    by the base's travel (0.56-1.08 rad over 10 scenes) and no demonstration reached the goal."""
+    from hrc_lab.env.robot.expert import ScriptedExpert
+
+    cfg = RLConfig(steps_per_subtask=40, delta_r=0.01)
+    env = make_goal_env(correction_cell(task="one_object", sim=SimSettings(horizon=400, yaw_action=True)), cfg,
+                        seed=0, subtask=0)
+    for seed in (0, 1):
+        env.reset(seed=seed)
+        expert, info, truncated = ScriptedExpert(env.cell), {}, False
+        while not truncated:
+            step = expert.act()
+            action = np.zeros(env.action_space.shape) if step is None else step.action / env.action_scale
+            if step is None:
+                action[-1] = -1.0
+            _, _, _, truncated, info = env.step(np.clip(action, -1.0, 1.0))
+        assert abs(env.cell.object_yaws()[env.goal_objects[0]]) < 0.005
+        assert info["is_success"], info["goal_distances"]
+    env.close()
+
+
 # --- Algorithm 1 ---------------------------------------------------------------------------------------------------
 
 
@@ -230,12 +253,17 @@ def test_correction_rule_on_hand_made_states():
     assert needs_correction(subgoal + [0.0, 0.03, 0.0401], subgoal, 0.05)  # |.| = 0.05008: corrected
     assert needs_correction(subgoal + [0.2, 0.0, 0.0], subgoal, 0.05)
     assert not needs_correction(subgoal + [0.2, 0.0, 0.0], subgoal, 0.25)
-    # the executed action: the planner's joint deltas (clipped to [-1, 1]) and suction; wrist 3 stays the policy's
+    # the executed action: the planner's joint deltas (clipped to [-1, 1]) and suction; without a guide's wrist-3
+    # delta, wrist 3 stays the policy's
     action = np.array([0.1, 0.2, 0.3, 0.4, -0.5])
     np.testing.assert_allclose(corrected_action(action, np.array([0.5, -1.5, 0.0]), 1.0), [0.5, -1.0, 0.0, 0.4, 1.0])
     np.testing.assert_allclose(action, [0.1, 0.2, 0.3, 0.4, -0.5])  # not modified in place
-    # rl.suction=auto: no suction dimension, wrist 3 (the last) stays the policy's
+    # rl.suction=auto: no suction dimension; with a wrist-3 delta from the guide (clipped), it replaces the policy's
     np.testing.assert_allclose(corrected_action(action[:4], np.array([0.5, -1.5, 0.0]), None), [0.5, -1.0, 0.0, 0.4])
+    np.testing.assert_allclose(corrected_action(action[:4], np.array([0.5, -1.5, 0.0]), None, wrist3=1.5),
+                               [0.5, -1.0, 0.0, 1.0])
+    np.testing.assert_allclose(corrected_action(action, np.array([0.5, 0.0, 0.0]), -1.0, wrist3=0.5),
+                               [0.5, 0.0, 0.0, 0.5, -1.0])
 
 
 @pytest.mark.parametrize("lam", [1.0, 0.0])

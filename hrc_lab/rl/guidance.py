@@ -40,13 +40,16 @@ def needs_correction(predicted: np.ndarray, subgoal: np.ndarray, delta_g: float)
     return bool(np.linalg.norm(np.asarray(subgoal, dtype=float) - np.asarray(predicted, dtype=float)) > delta_g)
 
 
-def corrected_action(action: np.ndarray, joint_deltas: np.ndarray, suction: float | None) -> np.ndarray:
+def corrected_action(action: np.ndarray, joint_deltas: np.ndarray, suction: float | None,
+                     wrist3: float | None = None) -> np.ndarray:
     """The executed action in [-1, 1] when the guide corrects ``action``: the dynamic planner's [base, shoulder,
-    elbow] deltas (already in [-1, 1] units) and the guide's suction command (``None`` when the action has no
-    suction dimension, ``rl.suction=auto``); a wrist-3 delta (``yaw_action``), which the planner does not produce,
-    stays the policy's."""
+    elbow] deltas (already in [-1, 1] units), the guide's wrist-3 delta (``None`` when the action has no wrist-3
+    dimension, ``env.sim.yaw_action=false``) and its suction command (``None`` when the action has no suction
+    dimension, ``rl.suction=auto``)."""
     out = np.array(action, dtype=np.float32, copy=True)
     out[:3] = np.clip(joint_deltas, -1.0, 1.0)
+    if wrist3 is not None:
+        out[3] = np.clip(wrist3, -1.0, 1.0)
     if suction is not None:
         out[-1] = suction
     return out
@@ -176,8 +179,11 @@ class GuidedDDPG(DDPG):
         if not needs_correction(env.predicted_lip(buffer_action[0]), subgoal, self.delta_g):
             return action, buffer_action
         deltas, suction = self.guide.act(env, subgoal)
+        deltas = np.asarray(deltas) / env.max_joint_step
+        # the planner moves the lip; wrist 3 keeps the tool's yaw, as in the demonstrations it learned from
+        wrist3 = env.cell.wrist3_holding_yaw(deltas[0]) if env.cell.yaw_action else None
         suction = suction if env.suction_action else None
-        buffer_action = corrected_action(buffer_action[0], np.asarray(deltas) / env.max_joint_step, suction)[None]
+        buffer_action = corrected_action(buffer_action[0], deltas, suction, wrist3)[None]
         self.guidance_counts["corrected"] += 1
         self.episode_corrections[-1] += 1
         return self.policy.unscale_action(buffer_action), buffer_action

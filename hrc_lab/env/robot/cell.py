@@ -297,6 +297,12 @@ class HRCCell(ManipulationEnv):
         effective = np.column_stack([j[:, 0], j[:, 1] - j[:, 3], j[:, 2] - j[:, 3]])
         return scratch.site_xpos[self._grip_site].copy(), effective
 
+    @staticmethod
+    def wrist3_holding_yaw(dq_base: float) -> float:
+        """The wrist-3 delta that keeps the tool's yaw, and a held part's, while the base turns by ``dq_base``:
+        with the tool pointing down (wrist 2 at -pi/2) the tool's yaw about z is q_base - q_wrist3 + const."""
+        return float(dq_base)
+
     def joint_targets(self, action: np.ndarray) -> np.ndarray:
         """Six absolute joint targets for a thesis action (clipped; wrist 1/2 keep the tool pointing down).
 

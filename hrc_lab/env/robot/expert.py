@@ -152,7 +152,9 @@ class ScriptedExpert:
         )
 
     def _action(self, dq: np.ndarray) -> np.ndarray:
-        extra = [0.0] if self.env.yaw_action else []
+        # with a wrist-3 action (3.3's q'_wrist3), wrist 3 turns with the base, so the tool's yaw and a held
+        # part's stay as they were gripped: a part is delivered at the yaw it had (the goal's, Eq. 3.6's psi = 0)
+        extra = [self.env.wrist3_holding_yaw(dq[0])] if self.env.yaw_action else []
         return np.array([*dq, *extra, 1.0 if self.suction else -1.0])
 
 
