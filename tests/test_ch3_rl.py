@@ -38,7 +38,7 @@ def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_p
     job = run_job("experiment=ch3/fig_3_13", "rl.lam=1", *TINY)
     client, run_id = job.client, job.run.info.run_id
     for metric in ("success_rate", "collision_rate", "guidance_rate", "env_steps_per_s", "updates_per_s",
-                   "train_grip_rate", "train_moved_rate"):
+                   "train_grip_rate", "train_moved_rate", "train_final_distance"):
         assert [m.step for m in client.get_metric_history(run_id, metric)] == [1, 2], metric
     # 3.3's action: the joints (with wrist 3) and no suction dimension; the cup grips what it touches
     assert job.run.data.params["rl.suction"] == "auto"

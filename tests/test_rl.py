@@ -311,7 +311,9 @@ def test_guided_ddpg_her_with_the_two_level_planner_runs_updates_in_the_cell(env
     logged = []
     learn_episodes(agent, 3, EpisodeMetrics(lambda metrics, step: logged.append((step, metrics)), every=2))
     assert [step for step, _ in logged] == [2] and set(logged[0][1]) == {
-        "train_success_rate", "train_collision_rate", "train_grip_rate", "train_moved_rate", "train_guidance_rate"}
+        "train_success_rate", "train_collision_rate", "train_grip_rate", "train_moved_rate", "train_final_distance",
+        "train_guidance_rate"}
+    assert logged[0][1]["train_final_distance"] > 0
     assert agent._n_updates == STEPS and agent.guidance_counts["steps"] == 3 * STEPS
     assert 0 < agent.guidance_counts["corrected"] <= 3 * STEPS
     assert two_level_guide.object in (1, 2) and two_level_guide.index in (0, 1)

@@ -12,7 +12,8 @@ guides a stable-baselines3 DDPG + HER agent (:mod:`hrc_lab.rl`) in a fraction ``
 deterministic policy on held-out scenes (no noise, no guidance). The subtasks of a correction plan are trained in
 sequence, one agent each, ``protocol.epochs`` epochs per subtask; epoch ``k * epochs + e`` of the run is epoch
 ``e`` of subtask ``k``. Every epoch logs ``success_rate``, ``collision_rate``, ``final_distance`` (evaluation),
-``train_success_rate``, ``train_collision_rate``, ``train_grip_rate`` and ``train_moved_rate`` (that epoch's
+``train_success_rate``, ``train_collision_rate``, ``train_grip_rate``, ``train_moved_rate`` and
+``train_final_distance`` (that epoch's
 training episodes, exploration noise and guidance included; :class:`~hrc_lab.rl.agent.EpisodeMetrics`),
 ``guidance_rate`` (corrected / collected steps of those episodes), ``env_steps_per_s`` (collected
 steps / time in rollout collection, guidance included) and ``updates_per_s`` (gradient steps / time in training)
@@ -72,8 +73,8 @@ def save_checkpoint(ctx: RunContext, agent, subtask: int) -> None:
 
 
 EPOCH_METRICS = ("success_rate", "collision_rate", "final_distance", "train_success_rate", "train_collision_rate",
-                 "train_grip_rate", "train_moved_rate", "guidance_rate", "env_steps_per_s", "updates_per_s",
-                 "subtask")
+                 "train_grip_rate", "train_moved_rate", "train_final_distance", "guidance_rate", "env_steps_per_s",
+                 "updates_per_s", "subtask")
 
 
 def resume_agent(ctx: RunContext, env, guide, subtask: int):
@@ -136,7 +137,8 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
             metrics = {
                 **scores,
                 **{key: training.get(key, float("nan")) for key in ("train_success_rate", "train_collision_rate",
-                                                                    "train_grip_rate", "train_moved_rate")},
+                                                                    "train_grip_rate", "train_moved_rate",
+                                                                    "train_final_distance")},
                 "guidance_rate": corrected / max(1, agent.num_timesteps - steps),
                 "env_steps_per_s": (agent.num_timesteps - steps) / max(1e-9, timer.collect_s - collect_s),
                 "updates_per_s": (agent._n_updates - updates) / max(1e-9, timer.train_s - train_s),
@@ -159,9 +161,11 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
         # the overall success rate: mean over the plan's subtasks of the last epoch's evaluation
         "final_success_rate": float(last.success_rate.mean()),
         "final_collision_rate": float(last.collision_rate.mean()),
+        "final_distance": float(last.final_distance.mean()),
         "final_train_success_rate": float(last.train_success_rate.mean()),
         "final_train_grip_rate": float(last.train_grip_rate.mean()),
         "final_train_moved_rate": float(last.train_moved_rate.mean()),
+        "final_train_distance": float(last.train_final_distance.mean()),
         "best_success_rate": float(curves.groupby("subtask").success_rate.max().mean()),
         "mean_guidance_rate": float(curves.guidance_rate.mean()),
         "mean_env_steps_per_s": float(curves.env_steps_per_s.mean()),

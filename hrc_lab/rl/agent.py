@@ -96,7 +96,8 @@ class EpisodeMetrics(BaseCallback):
     and collision rate of those episodes (their last step's ``is_success`` and ``collided``), how exploration
     reached the objects (``grip_rate``: share of episodes in which a part was held at some step; ``moved_rate``:
     share in which a goal object moved more than ``moved_m`` from its start: without that, HER's relabelled
-    goals are all about where the parts already were) and, for a :class:`GuidedDDPG`, the guidance rate so far
+    goals are all about where the parts already were), the mean final |P_obj - P_goal| (``final_distance``, the
+    farthest goal object; Eq. 3.6's distance) and, for a :class:`GuidedDDPG`, the guidance rate so far
     (corrected steps / steps); ``step`` is the episode count."""
 
     def __init__(self, log: Callable[..., None], every: int = 10, prefix: str = "train_",
@@ -113,7 +114,8 @@ class EpisodeMetrics(BaseCallback):
             if done:
                 self.episodes.append({"success_rate": bool(info["is_success"]),
                                       "collision_rate": bool(info["collided"]),
-                                      "grip_rate": self.held, "moved_rate": self.moved})
+                                      "grip_rate": self.held, "moved_rate": self.moved,
+                                      "final_distance": float(np.max(info["goal_distances"]))})
                 self.held = self.moved = False
         if len(self.episodes) >= self.every:
             metrics = {f"{self.prefix}{key}": float(np.mean([episode[key] for episode in self.episodes]))
