@@ -33,7 +33,7 @@ JOBLIB = "hydra/launcher=joblib"
 
 # Steps no report table reads, run after the topic's own sweeps (hrc-lab arguments).
 EXTRA_SWEEPS: dict[str, list[tuple[str, ...]]] = {
-    "ch4_reasoning": [  # Fig. 4.7's variants of ours: their runs land in ch4/fig_4_7 (split to keep sweeps <= 45 min)
+    "ch4_reasoning": [  # Fig. 4.7's variants of ours, a sweep of their own whose runs land in ch4/fig_4_7
         ("experiment=ch4/fig_4_7_variants", JOBLIB),
     ],
     "data_demonstrations": [  # one rendered demonstration per cell, copied to reports/videos/ (the report links them)
