@@ -56,7 +56,6 @@ LOGGERS = Registry("logger")
 LOGGERS.register("mlflow", LoggerConfig, "hrc_lab.tracking:RunTracker")
 
 
-
 @dataclass
 class TrainerConfig:
     """The Lightning ``Trainer`` arguments a run may set, with their defaults (written here only: the files in
