@@ -5,8 +5,10 @@ checkpoints.
 Table 4.3) or, with ``guide=...``, :func:`build_guided_ddpg_her` (``rl=ddpg_her_guided``: Algorithm 1,
 :mod:`hrc_lab.rl.guidance`). Both are stable-baselines3's DDPG (one critic, no target smoothing) with its
 ``HerReplayBuffer`` on the goal env of :mod:`hrc_lab.rl.goal_env`; exploration adds Gaussian noise to the
-[-1, 1] actions. A checkpoint (:func:`save_agent`) is a folder with SB3's ``agent.zip`` and, when it is small
-enough, the gzipped replay buffer (``replay_buffer.pkl.gz``), which :func:`load_agent` restores to resume.
+[-1, 1] actions; with ``rl.normalize_inputs`` the networks see the HER paper's normalised inputs
+(:mod:`hrc_lab.rl.normalization`). A checkpoint (:func:`save_agent`) is a folder with SB3's ``agent.zip`` and,
+when it is small enough, the gzipped replay buffer (``replay_buffer.pkl.gz``), which :func:`load_agent` restores
+to resume.
 """
 
 from __future__ import annotations
@@ -28,10 +30,19 @@ from tqdm import tqdm
 from hrc_lab.rl.configs import RLConfig
 from hrc_lab.rl.goal_env import HRCGoalEnv
 from hrc_lab.rl.guidance import GuidedDDPG
+from hrc_lab.rl.normalization import NormalizedCombinedExtractor
 
 AGENT_FILE = "agent.zip"
 BUFFER_FILE = "replay_buffer.pkl.gz"
 MAX_BUFFER_BYTES = 256 * 2**20  # by default the replay buffer is saved while its transitions take at most this
+
+
+def policy_kwargs(cfg: RLConfig) -> dict[str, Any]:
+    """The networks' hidden layers and, with ``rl.normalize_inputs``, the HER paper's input normalisation."""
+    kwargs: dict[str, Any] = {"net_arch": list(cfg.net_arch)}
+    if cfg.normalize_inputs:
+        kwargs["features_extractor_class"] = NormalizedCombinedExtractor
+    return kwargs
 
 
 def ddpg_her_kwargs(cfg: RLConfig, env: HRCGoalEnv, seed: int) -> dict[str, Any]:
@@ -52,7 +63,7 @@ def ddpg_her_kwargs(cfg: RLConfig, env: HRCGoalEnv, seed: int) -> dict[str, Any]
         "replay_buffer_class": HerReplayBuffer,
         "replay_buffer_kwargs": {"n_sampled_goal": cfg.n_sampled_goal,
                                  "goal_selection_strategy": cfg.goal_selection_strategy},
-        "policy_kwargs": {"net_arch": list(cfg.net_arch)},
+        "policy_kwargs": policy_kwargs(cfg),
         "seed": seed,
         "device": "cpu",
         "verbose": 0,
