@@ -6,7 +6,8 @@ The two-level planner (task classifier c(x), sub-goal planner h, neural dynamic 
 scripted expert's demonstrations as in Table 3.1 (:func:`hrc_lab.experiments.ch3_motion.train_two_level`); it then
 guides a stable-baselines3 DDPG + HER agent (:mod:`hrc_lab.rl`) in a fraction ``rl.lam`` of the episodes.
 
-**Epoch** (our definition; the thesis does not give one): ``protocol.episodes_per_epoch`` training episodes of
+**Epoch** (ours): Algorithm 1's loop runs one episode and one update per epoch, so the thesis' 550 epochs are 550
+episodes; ours is ``protocol.episodes_per_epoch`` training episodes of
 ``rl.steps_per_subtask`` control steps each (after each episode, one gradient step per collected step once
 ``rl.learning_starts`` steps were collected), then ``protocol.eval_episodes`` evaluation episodes of the
 deterministic policy on held-out scenes (no noise, no guidance). The subtasks of a correction plan are trained in

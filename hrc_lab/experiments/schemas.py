@@ -444,12 +444,13 @@ PROTOCOLS.register("ch3_fig_3_10", Fig310Protocol, f"{CH3}:fig_3_10")
 class GuidedRLProtocol:
     """Algorithm 1 (3.2.3, 3.4.3): the two-level planner trained on ``demos`` expert demonstrations as in Table 3.1
     (same ``subgoals_per_stage``, ``segmentation_penalty``, ``stage_starts``, ``placement_noise``) guides DDPG + HER
-    (``rl``); each subtask of the plan trains ``epochs`` epochs in sequence. An epoch (ours; the thesis gives none):
-    ``episodes_per_epoch`` training episodes, then ``eval_episodes`` episodes of the deterministic policy on held-out
-    scenes (``hrc_lab.experiments.ch3_rl``). The agent is saved every ``checkpoint_every`` epochs and at the end."""
+    (``rl``); each subtask of the plan trains ``epochs`` epochs in sequence. An epoch (ours; Algorithm 1's loop runs
+    one episode and one update per epoch): ``episodes_per_epoch`` training episodes, then ``eval_episodes``
+    episodes of the deterministic policy on held-out scenes (``hrc_lab.experiments.ch3_rl``). The agent is saved
+    every ``checkpoint_every`` epochs and at the end."""
 
-    # thesis: 550 epochs. 80 fits the 3 h budget of the Fig. 3.13 sweep on 2 cores (measured; conf/experiment/ch3/
-    # fig_3_13.yaml); protocol.epochs=550 runs the thesis' length
+    # thesis: 550 epochs of Algorithm 1, one episode each, so 550 episodes; 80 of ours are 800 episodes per subtask
+    # and fit the 3 h budget of the Fig. 3.13 sweep on 2 cores (conf/experiment/ch3/fig_3_13.yaml)
     epochs: int = 80
     episodes_per_epoch: int = 10
     eval_episodes: int = 10

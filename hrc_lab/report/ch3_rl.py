@@ -73,12 +73,22 @@ def net_arch(runs: pd.DataFrame) -> str:
     return " or ".join(sorted(archs)) + " units"
 
 
+def inputs_text(runs: pd.DataFrame) -> str:
+    """Whether the runs' networks saw the HER paper's normalised inputs (``rl.normalize_inputs``)."""
+    column = f"{PARAM_PREFIX}rl.normalize_inputs"
+    # runs from before the key existed had raw inputs
+    values = set(runs[column].fillna("False").astype(str)) if column in runs else {"False"}
+    names = {"True": "inputs normalised as in the HER paper", "False": "raw inputs"}
+    return " or ".join(names.get(v, f"rl.normalize_inputs={v}") for v in sorted(values))
+
+
 def epoch_text(runs: pd.DataFrame) -> str:
     return (f"An epoch: {amount(runs, 'protocol.episodes_per_epoch', 'training episodes')} of "
             f"{amount(runs, 'rl.steps_per_subtask', 'control steps')}, then "
             f"{amount(runs, 'protocol.eval_episodes', 'evaluation episodes')} of the deterministic policy on held-out "
             f"scenes; {amount(runs, 'protocol.epochs', 'epochs')} per subtask, subtasks in sequence (thesis: 550 "
-            f"epochs). Agent: DDPG + HER, hidden layers {net_arch(runs)}; planner trained on "
+            "epochs of Algorithm 1, one episode and one update each). Agent: DDPG + HER, hidden layers "
+            f"{net_arch(runs)}, {inputs_text(runs)}; planner trained on "
             f"{amount(runs, 'protocol.demos', 'expert demonstrations')}. Final SR: the last epoch's evaluation, "
             f"mean over the plan's subtasks; mean ± std over seeds {sorted(runs.seed.unique())}.")
 

@@ -57,8 +57,8 @@ TOPICS = {
         "Training runs in our robosuite UR5e error-correction cells (`hrc_lab/env/robot/correction_cell.py`) as a "
         "gymnasium goal env (`hrc_lab/rl/goal_env.py`), not the thesis' CoppeliaSim UR10; the agent is "
         "stable-baselines3's DDPG with its HER replay buffer (`hrc_lab/rl/agent.py`), the guide the two-level planner "
-        "trained on scripted-expert demonstrations (`hrc_lab/experiments/ch3_motion.py`). The thesis does not define "
-        "an epoch; ours is in each section (`hrc_lab/experiments/ch3_rl.py`).",
+        "trained on scripted-expert demonstrations (`hrc_lab/experiments/ch3_motion.py`). Algorithm 1 runs one "
+        "episode and one update per epoch; our epoch is in each section (`hrc_lab/experiments/ch3_rl.py`).",
         [("ch3/fig_3_13", "fig_3_13"), ("ch3/fig_3_12", "fig_3_12"), ("ch3/fig_3_9", "fig_3_9")],
     ),
     "ch4_motion": (
