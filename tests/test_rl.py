@@ -7,7 +7,6 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-import gymnasium as gym
 import lightning.pytorch as pl
 import numpy as np
 import pytest
@@ -34,9 +33,10 @@ from hrc_lab.rl.agent import (
     save_agent,
 )
 from hrc_lab.rl.configs import RLConfig
-from hrc_lab.rl.goal_env import HRCGoalEnv, make_goal_env, sparse_reward
+from hrc_lab.rl.goal_env import make_goal_env, sparse_reward
 from hrc_lab.rl.guidance import CorrectionGuide, corrected_action, needs_correction
 from hrc_lab.rl.normalization import CLIP, NormalizedCombinedExtractor, RunningNormalizer
+from hrc_lab.rl.reach import ReachGoalEnv, make_reach_env
 
 
 def correction_cell(**values) -> ErrorCorrectionConfig:
@@ -373,39 +373,29 @@ def test_normalised_agent_trains_its_statistics_on_relabelled_batches_and_hands_
     assert not isinstance(raw.actor.features_extractor, NormalizedCombinedExtractor)
 
 
-class ReachEnv(HRCGoalEnv):
-    """The goal env with the lip as the achieved goal and a point up to ``REACH_M`` from the lip's start (never
-    below it) as the desired goal: a reach in the UR5e's joint space with 3.3's action."""
-
-    REACH_M = 0.15
-
-    def _reset_scene(self):
-        super()._reset_scene()
-        self.dims_per_object = 3
-        offset = self.np_random.uniform(-self.REACH_M, self.REACH_M, 3)
-        offset[2] = abs(offset[2])
-        self._desired = self.lip() + offset
-        self._start = self._achieved()
-
-    def _achieved(self):
-        return self.lip() if getattr(self, "dims_per_object", 4) == 3 else super()._achieved()
+def test_reach_env_goal_is_a_point_near_the_lip_and_its_achieved_goal_is_the_lip():
+    cfg = RLConfig(**TINY, suction="auto", delta_r=0.05)
+    reach = make_reach_env(correction_cell(task="one_object", sim=SimSettings(yaw_action=True)), cfg, seed=0)
+    obs, _ = reach.reset(seed=3)
+    assert reach.observation_space["desired_goal"].shape == obs["desired_goal"].shape == (3,)
+    np.testing.assert_allclose(obs["achieved_goal"], reach.lip(), atol=1e-6)
+    offset = obs["desired_goal"] - obs["achieved_goal"]
+    assert np.all(np.abs(offset) <= 0.15 + 1e-6) and offset[2] >= -1e-6
+    assert reach.compute_reward(obs["achieved_goal"], obs["desired_goal"], {}) == (
+        0.0 if np.linalg.norm(offset) < 0.05 else -1.0)
+    obs, reward, *_ = reach.step(np.zeros(reach.action_space.shape, dtype=np.float32))
+    assert reward == reach.compute_reward(obs["achieved_goal"], obs["desired_goal"], {})
+    with pytest.raises(ValueError, match="reach_m"):
+        ReachGoalEnv(reach.cell, reach_m=0.0)
 
 
 @pytest.mark.slow
 def test_ddpg_her_with_normalised_inputs_learns_a_reach_in_the_cell():
     """A learning test that can fail: 75 episodes of 40 steps reach within 5 cm (raw inputs: SR 0 after 400)."""
     cfg = RLConfig(suction="auto", delta_r=0.05, net_arch=[64, 64], buffer_size=100_000)
-
-    def reach(seed):
-        cell = make_goal_env(correction_cell(task="one_object", sim=SimSettings(yaw_action=True)), cfg, seed=seed).cell
-        reach_env = ReachEnv(cell, steps_per_subtask=40, delta_r=0.05, suction="auto")
-        goal = gym.spaces.Box(-np.inf, np.inf, (3,), dtype=np.float32)
-        reach_env.observation_space = gym.spaces.Dict({"observation": reach_env.observation_space["observation"],
-                                                       "achieved_goal": goal, "desired_goal": goal})
-        return reach_env
-
-    agent = learn_episodes(build_ddpg_her(cfg, reach(0), seed=0), 75)
-    assert evaluate(agent, reach(1), episodes=10, seed=1000)["success_rate"] >= 0.7
+    cell = correction_cell(task="one_object", sim=SimSettings(yaw_action=True))
+    agent = learn_episodes(build_ddpg_her(cfg, make_reach_env(cell, cfg, seed=0), seed=0), 75)
+    assert evaluate(agent, make_reach_env(cell, cfg, seed=1), episodes=10, seed=1000)["success_rate"] >= 0.7
 
 
 # --- configs ---------------------------------------------------------------------------------------------------------
