@@ -2,8 +2,9 @@
 
 :class:`ReachGoalEnv` is :class:`~hrc_lab.rl.goal_env.HRCGoalEnv` with the lip as the achieved goal and a point up
 to ``reach_m`` from the lip's start (never below it) as the desired goal: the same cell, observation, 3.3 action
-and Eq. 3.6 reward (over [x, y, z]), without the part. If DDPG + HER cannot learn this, no result of Fig. 3.12 /
-3.13 or Table 4.3's DRL row says anything about guidance; ``scripts/rl_reach_check.py`` prints its curve.
+and Eq. 3.6 reward (over [x, y, z]); the part stays in the scene but is not the goal. If DDPG + HER cannot learn
+this, no result of Fig. 3.12 / 3.13 or Table 4.3's DRL row says anything about guidance;
+``scripts/rl_reach_check.py`` prints its curve.
 """
 
 from __future__ import annotations
