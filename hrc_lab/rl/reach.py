@@ -29,16 +29,9 @@ class ReachGoalEnv(HRCGoalEnv):
         offset = self.np_random.uniform(-self.reach_m, self.reach_m, 3)
         offset[2] = abs(offset[2])
         self._desired = self.lip() + offset
-        self._start = self._achieved()
 
     def _achieved(self) -> np.ndarray:
         return self.lip()
-
-    def goal_distances(self) -> np.ndarray:
-        return np.array([np.linalg.norm(self._achieved() - self._desired)])
-
-    def moved(self) -> float:
-        return float(np.linalg.norm(self._achieved() - self._start))
 
 
 def make_reach_env(env_cfg, rl_cfg, seed: int | None = None, reach_m: float = 0.15) -> ReachGoalEnv:
