@@ -48,8 +48,8 @@ class PackageToOrderSpec:
     # initialised within the pending area" (4.4.1) and of 4.4.3's 0.3 m in x. False: product i stays in cell i
     pending_shuffle: bool = False
     box_center: tuple[float, float] = (0.0, 0.30)
-    # +-x, +-y of the whole box: the reasoning experiments keep it fixed (thesis 4.4.1: object positions vary); the
-    # thesis' motion module handles up to 0.175, 0.1
+    # +-x, +-y of the whole box; fixed by default. Tables 4.1 and 4.2 set Sec. 4.4.3's ranges (0.135, 0.1: goal
+    # spans of 0.35 x 0.2 m and more), Table 4.3 (0.1, 0.05); Fig. 4.7 and 4.4.5 keep it fixed
     box_jitter: tuple[float, float] = (0.0, 0.0)
     slot_spacing: float = 0.08
     box_floor: float = 0.01
