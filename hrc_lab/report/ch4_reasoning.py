@@ -72,10 +72,9 @@ def table_4_1(runs: pd.DataFrame) -> Section:
             "",
             lat.to_markdown(index=False),
         ]
-    text += conditions_paragraph(runs, "Sec. 4.4.3's ranges, as in Table 4.2. Ours, the MLP and RF read goals "
-                                  "relative to the box (`hrc_lab/reasoning/encoding.py`), so only the object-goal "
-                                  "graphs of GNN [74] and GNN-task, whose goal nodes sit at table coordinates, see "
-                                  "the box move.")
+    text += conditions_paragraph(runs, "ours, the MLP and RF read goals relative to the box "
+                                  "(`hrc_lab/reasoning/encoding.py`), so only the object-goal graphs of GNN [74] "
+                                  "and GNN-task, whose goal nodes sit at table coordinates, see the box move.")
     text += _mlp_paragraph(stats, thesis, runs)
     return Section(
         "Table 4.1: reasoning success rates",
