@@ -173,12 +173,31 @@ class SupervisedModule(pl.LightningModule):
         self.lr, self.weight_decay, self.optimizer_name = lr, weight_decay, optimizer
         self.schedule, self.warmup_steps = schedule, warmup_steps
         self.batch_size_of = batch_size
+        self._epoch_sums: dict[str, dict[str, torch.Tensor]] = {}  # per stage: sum of value x batch size
+        self._epoch_counts: dict[str, int] = {}
 
     def _step(self, batch: Any, stage: str) -> torch.Tensor:
         loss, values = self.objective(self.network, batch)
-        logs = {f"{stage}_loss": loss} | {f"{stage}_{name}": value for name, value in values.items()}
-        self.log_dict(logs, on_step=False, on_epoch=True, batch_size=self.batch_size_of(batch))
+        n = self.batch_size_of(batch)
+        sums = self._epoch_sums.setdefault(stage, {})
+        for name, value in ({"loss": loss} | values).items():
+            sums[name] = sums.get(name, 0.0) + value.detach() * n
+        self._epoch_counts[stage] = self._epoch_counts.get(stage, 0) + n
         return loss
+
+    def _log_epoch_means(self, stage: str) -> None:
+        """Logs the epoch's batch-size-weighted means. Accumulated here rather than by ``self.log`` at every step:
+        Lightning's per-call bookkeeping cost ~1.6 ms per value, a third of a small graph model's step (measured
+        with cProfile on a Fig. 4.7 job)."""
+        sums, count = self._epoch_sums.pop(stage, {}), self._epoch_counts.pop(stage, 0)
+        if count:
+            self.log_dict({f"{stage}_{name}": total / count for name, total in sums.items()}, on_epoch=True)
+
+    def on_train_epoch_end(self) -> None:
+        self._log_epoch_means("train")
+
+    def on_validation_epoch_end(self) -> None:
+        self._log_epoch_means("val")
 
     def training_step(self, batch: Any, batch_idx: int) -> torch.Tensor:
         return self._step(batch, "train")
@@ -231,10 +250,73 @@ class FixedStepDataModule(pl.LightningDataModule):
         sampler = RandomSampler(self.samples, replacement=True, num_samples=self.batch_size * self.steps_per_epoch,
                                 generator=self.generator)
         if _holds_graphs(self.samples):
-            from torch_geometric.loader import DataLoader as GraphLoader
-
-            return GraphLoader(self.samples, batch_size=self.batch_size, sampler=sampler)
+            bank = GraphBank(self.samples)
+            return DataLoader(range(len(self.samples)), batch_size=self.batch_size, sampler=sampler,
+                              collate_fn=bank.batch)
         return DataLoader(self.samples, batch_size=self.batch_size, sampler=sampler, collate_fn=self.collate_fn)
+
+
+class GraphBank:
+    """PyG graphs collated once; ``batch(indices)`` is the mini-batch of the graphs at ``indices``, equal tensor for
+    tensor to ``Batch.from_data_list([graphs[i] for i in indices])``, gathered with index arithmetic on the collated
+    bank instead of PyG's per-graph collation (5 ms -> 2 ms of a 15-ms step of Ch.4's reasoning models at 64 graphs,
+    measured). Graphs are read once: a PyG dataset's random transform would not be redrawn per batch."""
+
+    def __init__(self, graphs: Sequence) -> None:
+        from torch_geometric.data import Batch
+
+        graphs = list(graphs)
+        self.bank = Batch.from_data_list(graphs)
+        self.n_nodes = self.bank.ptr.diff()
+        self.keys = [key for key in self.bank.keys() if key not in ("batch", "ptr", "num_nodes")]
+        # per tensor attribute: its concatenation dim, each graph's start and size along it, and, for attributes
+        # PyG increments (edge_index: by each graph's node count), each graph's increment and its offset in the bank
+        self.layout: dict[str, tuple[int, torch.Tensor, torch.Tensor, torch.Tensor | None, torch.Tensor | None]] = {}
+        first = graphs[0]
+        for key in self.keys:
+            if not isinstance(first[key], torch.Tensor):
+                continue  # collated to a list (strings, lists) or a tensor of numbers: one entry per graph
+            cat_dim = first.__cat_dim__(key, first[key])
+            dim = 0 if cat_dim is None or first[key].dim() == 0 else cat_dim % self.bank[key].dim()
+            bounds = self.bank._slice_dict[key]
+            increments = torch.tensor([graph.__inc__(key, graph[key]) for graph in graphs])
+            offsets = _exclusive_cumsum(increments) if increments.any() else None
+            self.layout[key] = (dim, bounds[:-1], bounds.diff(), increments if increments.any() else None, offsets)
+
+    def batch(self, indices: Sequence[int]):
+        from torch_geometric.data import Batch
+
+        index = torch.as_tensor(indices, dtype=torch.long)
+        values, slices, incs = {}, {}, {}
+        for key in self.keys:
+            value = self.bank[key]
+            if key not in self.layout:
+                values[key] = value[index] if isinstance(value, torch.Tensor) else [value[i] for i in index.tolist()]
+                continue
+            dim, starts, sizes, increments, offsets = self.layout[key]
+            sizes = sizes[index]
+            before = _exclusive_cumsum(sizes)
+            positions = torch.arange(int(sizes.sum())) + torch.repeat_interleave(starts[index] - before, sizes)
+            picked = value.index_select(dim, positions)
+            slices[key] = torch.cat([before, sizes.sum().view(1)])
+            incs[key] = torch.zeros(len(index), dtype=torch.long)
+            if increments is not None:
+                incs[key] = _exclusive_cumsum(increments[index])
+                shift = torch.repeat_interleave(incs[key] - offsets[index], sizes)
+                picked = picked + shift.view([-1 if d == dim else 1 for d in range(picked.dim())])
+            values[key] = picked
+        n_nodes = self.n_nodes[index]
+        out = Batch(**values)
+        out.num_nodes = int(n_nodes.sum())
+        out.batch = torch.repeat_interleave(torch.arange(len(index)), n_nodes)
+        out.ptr = torch.cat([_exclusive_cumsum(n_nodes), n_nodes.sum().view(1)])
+        out._num_graphs, out._slice_dict, out._inc_dict = len(index), slices, incs
+        return out
+
+
+def _exclusive_cumsum(values: torch.Tensor) -> torch.Tensor:
+    """[0, v0, v0 + v1, ...] without the total."""
+    return torch.cumsum(values, 0) - values
 
 
 def _holds_graphs(samples: Dataset | Sequence) -> bool:

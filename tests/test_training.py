@@ -9,10 +9,11 @@ import pytest
 import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader, RandomSampler, TensorDataset
-from torch_geometric.data import Data
+from torch_geometric.data import Batch, Data
 
 from hrc_lab.training import (
     FixedStepDataModule,
+    GraphBank,
     SupervisedModule,
     ValidatedModule,
     accuracy,
@@ -64,6 +65,31 @@ def test_graph_samples_are_batched_by_pyg():
     for batch in batches:
         assert batch.num_graphs == 5 and batch.y.shape == (5,) and batch_size_of(batch) == 5
         assert batch.x.shape[0] == int((batch.y + 1).sum())  # each graph keeps its own nodes
+
+
+def test_a_graph_bank_batch_is_what_pyg_collates():
+    """Node, edge and graph attributes, edge indices shifted by the node counts, empty graphs, 0-dim tensors, ints
+    and lists: every attribute of a bank's batch equals PyG's collation of the same graphs (repeats included)."""
+    generator = torch.Generator().manual_seed(0)
+    graphs = []
+    for i in range(12):
+        n = i % 4  # graphs 0, 4, 8 have no nodes
+        graphs.append(Data(x=torch.randn(n, 3, generator=generator), num_nodes=n,
+                           edge_index=torch.randint(0, max(n, 1), (2, 2 * n), generator=generator),
+                           pair=torch.randint(0, 4, (n, 2), generator=generator), label=torch.tensor([i]),
+                           goals=torch.randn(1, 4, 3, generator=generator), weight=torch.tensor(0.5 * i),
+                           count=i, names=[f"part{i}"]))
+    bank = GraphBank(graphs)
+    for indices in ([3, 3, 7, 0, 11], [5], list(range(12)), [8, 1, 2]):
+        ours, pyg = bank.batch(indices), Batch.from_data_list([graphs[i] for i in indices])
+        assert sorted(ours.keys()) == sorted(pyg.keys())
+        for key in pyg.keys():
+            if isinstance(pyg[key], torch.Tensor):
+                assert ours[key].dtype == pyg[key].dtype and torch.equal(ours[key], pyg[key]), key
+            else:
+                assert ours[key] == pyg[key], key
+        assert (ours.num_graphs, ours.num_nodes) == (pyg.num_graphs, pyg.num_nodes)
+        assert [g.x.shape[0] for g in ours.to_data_list()] == [graphs[i].x.shape[0] for i in indices]
 
 
 def test_draws_are_those_of_a_random_sampler_with_replacement():
@@ -135,6 +161,13 @@ def test_a_fit_is_max_epochs_times_steps_per_epoch_steps_and_logs_per_stage():
                 val_dataloaders=val)
     assert trainer.global_step == 3 * 4
     assert {"train_loss", "train_acc", "val_loss", "val_acc"} <= set(trainer.callback_metrics)
+    # the epoch's value is the mean over its samples (batches of 8, 8 and 4 weighted by size), without the
+    # sanity-check batches Lightning scores before training
+    with torch.no_grad():
+        x_val, y_val = blobs(20, seed=1)
+        logits = module.network(x_val)
+    assert trainer.callback_metrics["val_loss"].item() == pytest.approx(F.cross_entropy(logits, y_val).item())
+    assert trainer.callback_metrics["val_acc"].item() == pytest.approx(accuracy(logits, y_val).item())
 
 
 def test_a_linear_classifier_learns_two_blobs():
