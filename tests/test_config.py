@@ -1,3 +1,5 @@
+import itertools
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -147,3 +149,32 @@ def test_every_module_an_experiment_sweeps_over_is_accepted_by_its_protocol(expe
             option = OmegaConf.load(conf / group / f"{value.strip()}.yaml")
             name = option.get("name") or OmegaConf.select(option, f"{group}.name")  # a global-package option
             assert name in ACCEPTS[protocol].get(group, ("none",)), f"{experiment}: {group}={value} ({name})"
+
+
+def test_the_quick_table_runs_jobs_of_the_full_table(compose_config):
+    """README command 1 must not misrepresent a method (issue 24): each of its jobs is one of ch4/table_4_1's, same
+    config but the experiment name, so every number it prints is one the full table also reports."""
+    from omegaconf import OmegaConf
+
+    def sweep(experiment):
+        params = compose_config(f"experiment={experiment}", return_hydra_config=True).hydra.sweeper.params
+        return {key: _values(spec) for key, spec in params.items()}
+
+    def job(experiment, overrides):
+        cfg = OmegaConf.to_container(compose_config(f"experiment={experiment}", *overrides), resolve=True)
+        return {key: value for key, value in cfg.items() if key != "name"}
+
+    quick, full = sweep("ch4/table_4_1_quick"), sweep("ch4/table_4_1")
+    assert quick.keys() == full.keys() and all(set(quick[k]) <= set(full[k]) for k in quick)
+    jobs = [[f"{k}={v}" for k, v in zip(quick, values)] for values in itertools.product(*quick.values())]
+    assert 0 < len(jobs) < math.prod(len(v) for v in full.values())
+    for overrides in jobs:
+        assert job("ch4/table_4_1_quick", overrides) == job("ch4/table_4_1", overrides), overrides
+
+
+def _values(spec) -> list[str]:
+    """The values of a basic sweeper's parameter: a comma list or range(...)."""
+    spec = str(spec)
+    if spec.startswith("range("):
+        return [str(i) for i in range(*map(int, spec[6:-1].split(",")))]
+    return [v.strip() for v in spec.split(",")]
