@@ -439,3 +439,23 @@ def test_rl_yaml_files_compose_to_their_schemas():
     assert unguided.name == "ddpg_her" and unguided.guidance == "none" and unguided.delta_r is None
     assert guided.name == "ddpg_her_guided" and (guided.guidance, guided.lam, guided.delta_g) == ("ndp", 0.7, 0.05)
     assert guided.delta_r == 0.01 and guided.steps_per_subtask == 40
+
+
+def test_a_held_start_hands_the_agent_the_lifted_part():
+    """rl.start=held (issue 19's placing-only diagnostic): the episode starts with the goal object in the cup,
+    lifted to transit height, its step count at 0; the default start leaves it on the table."""
+    held = make_goal_env(correction_cell(task="two_object"), RLConfig(**TINY, start="held"), seed=0, subtask=0)
+    scene = make_goal_env(correction_cell(task="two_object"), RLConfig(**TINY), seed=0, subtask=0)
+    obs, _ = held.reset(seed=3)
+    lying, _ = scene.reset(seed=3)
+    assert held.cell.suction.held == held.goal_objects[0] and scene.cell.suction.held < 0
+    assert obs["observation"][-1] == 1.0 and held.elapsed_steps == 0
+    assert obs["achieved_goal"][2] > lying["achieved_goal"][2] + 0.05  # lifted
+    keep = np.zeros(held.action_space.shape)
+    keep[-1] = 1.0  # joints still, cup on
+    _, _, _, _, info = held.step(keep)
+    assert info["held"]
+    with pytest.raises(ValueError, match="rl.start"):
+        RLConfig(start="hovering")
+    with pytest.raises(ValueError, match="error correction only"):
+        make_goal_env(package_cell(), RLConfig(**TINY, start="held"), seed=0)

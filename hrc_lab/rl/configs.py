@@ -19,6 +19,7 @@ RLS = Registry("rl")
 
 GUIDANCES = ("none", "ndp", "ndp_direction")
 SUCTIONS = ("action", "auto")
+STARTS = ("scene", "held")
 GOAL_STRATEGIES = ("future", "final", "episode")  # stable-baselines3's GoalSelectionStrategy values
 
 
@@ -34,6 +35,9 @@ class RLConfig:
     # [q'_base, q'_shoulder, q'_elbow, q'_wrist3], and the cup grips the part whose top face it touches and holds
     # it to the episode's end (hrc_lab.rl.goal_env)
     suction: str = "action"
+    # scene: episodes start from the sampled scene (the thesis); held: the scripted expert has already picked the
+    # goal object and lifted it, so an episode is the placing half alone (issue 19's diagnostic, not in the thesis)
+    start: str = "scene"
     # --- DDPG (HER paper: Adam 1e-3, 3 x 256 ReLU layers, batch 256, gamma 0.98, polyak 0.95, 20 % Gaussian noise) ---
     learning_rate: float = 1e-3
     net_arch: list[int] = field(default_factory=lambda: [256, 256, 256])  # actor and critic hidden layers
@@ -90,6 +94,8 @@ class RLConfig:
                              f"got '{self.goal_selection_strategy}'")
         if self.suction not in SUCTIONS:
             raise ValueError(f"rl.suction must be one of {list(SUCTIONS)}, got '{self.suction}'")
+        if self.start not in STARTS:
+            raise ValueError(f"rl.start must be one of {list(STARTS)}, got '{self.start}'")
         if self.guidance not in GUIDANCES:
             raise ValueError(f"rl.guidance must be one of {list(GUIDANCES)}, got '{self.guidance}'")
         if not 0 <= self.lam <= 1:

@@ -22,6 +22,9 @@ action is the joint deltas only, as 3.3's ``[q'_base, q'_shoulder, q'_elbow, q'_
 so it grips the part whose top face it touches and holds it to the episode's end (until a collision disables it);
 Eq. 3.6 scores the part's pose, held or not.
 
+``start="held"`` (a diagnostic, not the thesis' setting): each error-correction episode starts once the scripted
+expert has picked the goal object and lifted it to transit height, so the agent learns the placing half alone.
+
 Episodes: error correction trains one subtask of the cell's correction plan per episode (``subtask`` k; the
 objects of the subtasks before k start at their goals, the state once those succeeded; ``subtask=None``: the
 whole plan, one goal per object) for ``steps_per_subtask`` control steps per goal object (40 in 3.4.3).
@@ -40,7 +43,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from hrc_lab.env.robot.cell import HRCCell
+from hrc_lab.env.robot.cell import PICK, HRCCell
 from hrc_lab.env.robot.correction_cell import ErrorCorrection
 from hrc_lab.env.robot.package_cell import PackageToOrder
 
@@ -64,7 +67,7 @@ class HRCGoalEnv(gym.Env):
 
     def __init__(self, cell: HRCCell, subtask: int | None = 0, steps_per_subtask: int = 40,
                  delta_r: float | None = None, disable_effector_on_collision: bool = True,
-                 cases: tuple[int, ...] = (), suction: str = "action") -> None:
+                 cases: tuple[int, ...] = (), suction: str = "action", start: str = "scene") -> None:
         if not isinstance(cell, ErrorCorrection | PackageToOrder):
             raise TypeError(f"HRCGoalEnv wraps ErrorCorrection or PackageToOrder cells, got {type(cell).__name__}")
         if steps_per_subtask < 1:
@@ -76,9 +79,14 @@ class HRCGoalEnv(gym.Env):
             raise ValueError(f"cases: a package-to-order cell draws CASE 1 or 2 per episode, got {list(cases)}")
         if suction not in ("action", "auto"):
             raise ValueError(f"rl.suction must be 'action' or 'auto', got '{suction}'")
+        if start not in ("scene", "held"):
+            raise ValueError(f"rl.start must be 'scene' or 'held', got '{start}'")
+        if start == "held" and not isinstance(cell, ErrorCorrection):
+            raise ValueError("rl.start=held: episodes start with the part picked in error correction only")
         self.cell = cell
         self.cases = tuple(cases)
         self.suction_action = suction == "action"
+        self.start = start
         self.subtask = subtask
         self.steps_per_subtask = steps_per_subtask
         self.delta_r = float(cell.success_threshold if delta_r is None else delta_r)
@@ -190,6 +198,8 @@ class HRCGoalEnv(gym.Env):
                     cell._set_object(done, cell.goals[done])
                 cell.sim.forward()
                 self.goal_objects = [plan[self.subtask]]
+            if self.start == "held":
+                self._pick(self.goal_objects[0])
             goals = np.column_stack([cell.goals[self.goal_objects], np.zeros(len(self.goal_objects))])
         else:
             self.goal_objects = list(range(len(cell.cell_objects)))
@@ -197,6 +207,16 @@ class HRCGoalEnv(gym.Env):
         self._desired = np.asarray(goals, dtype=float).ravel()
         self._start = self._achieved()
         self.elapsed_steps = 0
+
+    def _pick(self, obj: int) -> None:
+        """``rl.start=held``: the scripted expert's picking stage of ``obj`` (above it, down onto its top face, cup
+        on, lifted to transit height), so the episode is the placing half alone. Its steps are not the episode's."""
+        from hrc_lab.env.robot.expert import ScriptedExpert
+
+        expert = ScriptedExpert(self.cell)
+        expert.move = expert.plan.index(obj)
+        while (step := expert.act()) is not None and step.stage == PICK and step.obj == obj:
+            self.cell.step(step.action)
 
     def _poses(self) -> np.ndarray:
         return np.column_stack([self.cell.object_positions(), self.cell.object_yaws()])
@@ -228,4 +248,4 @@ def make_goal_env(env_cfg: Any, rl_cfg: Any, seed: int | None = None, subtask: i
 
     cell = ENVS.build(env_cfg, seed=seed)
     return HRCGoalEnv(cell, subtask=subtask, steps_per_subtask=rl_cfg.steps_per_subtask, delta_r=rl_cfg.delta_r,
-                      cases=cases, suction=rl_cfg.suction)
+                      cases=cases, suction=rl_cfg.suction, start=rl_cfg.start)
