@@ -231,7 +231,8 @@ class FixedStepDataModule(pl.LightningDataModule):
     whatever the data set's size (the experiments train on a dozen to thousands of samples).
 
     ``samples``: a map-style dataset (e.g. a ``TensorDataset`` of input and target tensors; items batched by
-    ``collate_fn``, torch's default collation when None) or a list of PyG graphs (batched by PyG's ``DataLoader``).
+    ``collate_fn``, torch's default collation when None) or a list of PyG graphs (batched as PyG collates them,
+    by :class:`GraphBank`).
     ``generator`` draws the samples; when None, ``RandomSampler`` takes a seed from torch's global generator at
     every epoch."""
 
