@@ -46,6 +46,7 @@ from gymnasium import spaces
 from hrc_lab.env.robot.cell import PICK, HRCCell
 from hrc_lab.env.robot.correction_cell import ErrorCorrection
 from hrc_lab.env.robot.package_cell import PackageToOrder
+from hrc_lab.rl.configs import STARTS, SUCTIONS
 
 
 def sparse_reward(achieved_goal: np.ndarray, desired_goal: np.ndarray, delta_r: float,
@@ -77,10 +78,10 @@ class HRCGoalEnv(gym.Env):
                              "has no reachable goal); use n_missing=0")
         if cases and (not isinstance(cell, PackageToOrder) or set(cases) - {1, 2}):
             raise ValueError(f"cases: a package-to-order cell draws CASE 1 or 2 per episode, got {list(cases)}")
-        if suction not in ("action", "auto"):
-            raise ValueError(f"rl.suction must be 'action' or 'auto', got '{suction}'")
-        if start not in ("scene", "held"):
-            raise ValueError(f"rl.start must be 'scene' or 'held', got '{start}'")
+        if suction not in SUCTIONS:
+            raise ValueError(f"rl.suction must be one of {list(SUCTIONS)}, got '{suction}'")
+        if start not in STARTS:
+            raise ValueError(f"rl.start must be one of {list(STARTS)}, got '{start}'")
         if start == "held" and not isinstance(cell, ErrorCorrection):
             raise ValueError("rl.start=held: episodes start with the part picked in error correction only")
         self.cell = cell
