@@ -281,8 +281,10 @@ class GraphBank:
             dim = 0 if cat_dim is None or first[key].dim() == 0 else cat_dim % self.bank[key].dim()
             bounds = self.bank._slice_dict[key]
             increments = torch.tensor([graph.__inc__(key, graph[key]) for graph in graphs])
-            offsets = _exclusive_cumsum(increments) if increments.any() else None
-            self.layout[key] = (dim, bounds[:-1], bounds.diff(), increments if increments.any() else None, offsets)
+            if not increments.any():
+                self.layout[key] = (dim, bounds[:-1], bounds.diff(), None, None)
+                continue
+            self.layout[key] = (dim, bounds[:-1], bounds.diff(), increments, _exclusive_cumsum(increments))
 
     def batch(self, indices: Sequence[int]):
         from torch_geometric.data import Batch
