@@ -177,6 +177,53 @@ def test_unguided_ddpg_her_updates_and_relabels_with_eq_3_6(env):
     assert set(np.unique(recomputed)) == {0.0, -1.0}  # random motions leave blue in place: its pose is reached
 
 
+def _filled_agent(env, **values):
+    """A DDPG + HER agent past its warm-up, with two episodes of random actions in its buffer."""
+    agent = build_ddpg_her(RLConfig(**{**TINY, **values}), env, seed=0)
+    learn_episodes(agent, 2)
+    agent.learning_starts = 0
+    return agent
+
+
+def test_her_paper_random_actions_replace_the_noisy_policy_in_a_random_eps_share_of_steps(env):
+    obs = {k: v[None] for k, v in env.reset(seed=3)[0].items()}
+    for random_eps, expected in ((0.0, 0.0), (0.3, 0.3), (1.0, 1.0)):
+        agent = _filled_agent(env, random_eps=random_eps, action_noise_std=0.01)
+        agent._last_obs = obs
+        policy = agent.policy.scale_action(agent.predict(obs, deterministic=True)[0])
+        draws = np.array([agent._sample_action(0, agent.action_noise)[1][0] for _ in range(400)])
+        random = np.any(np.abs(draws - policy) > 0.05, axis=1)  # farther than the noise from the policy's action
+        assert abs(random.mean() - expected) < 0.08, (random_eps, random.mean())
+        if random_eps == 1.0:  # uniform on [-1, 1]: mean 0, std 1 / sqrt(3)
+            assert np.all(np.abs(draws.mean(0)) < 0.1) and np.all(np.abs(draws.std(0) - 3 ** -0.5) < 0.06)
+
+
+def test_her_paper_action_penalty_pulls_the_actor_towards_zero_where_the_critic_is_flat(env):
+    sizes = {}
+    for action_l2 in (0.0, 1.0):
+        # without input normalisation, whose running statistics would move the actor's outputs by themselves
+        agent = _filled_agent(env, action_l2=action_l2, learning_rate=1e-2, normalize_inputs=False)
+        agent.critic.q1_forward = lambda obs, actions: 0.0 * actions.sum(dim=1, keepdim=True)  # a flat critic
+        batch = agent.replay_buffer.sample(64).observations
+        before = agent.actor(batch).detach()
+        agent.train(gradient_steps=50, batch_size=64)
+        sizes[action_l2] = (before.abs().mean().item(), agent.actor(batch).detach().abs().mean().item())
+    assert sizes[0.0][0] == pytest.approx(sizes[0.0][1])  # no penalty, a flat critic: the actor does not move
+    assert sizes[1.0][1] < 0.5 * sizes[1.0][0]
+
+
+def test_her_paper_clipped_targets_keep_the_critic_within_the_returns_of_sparse_rewards(env):
+    means = {}
+    for clip_return in (False, True):
+        agent = _filled_agent(env, clip_return=clip_return, learning_rate=1e-2)
+        agent.critic_target.forward = lambda obs, actions: (torch.full((len(actions), 1), 1000.0),)  # wild targets
+        agent.train(gradient_steps=100, batch_size=64)
+        batch = agent.replay_buffer.sample(64)
+        means[clip_return] = agent.critic(batch.observations, batch.actions)[0].mean().item()
+    assert means[False] > 100  # chases r + 0.98 * 1000
+    assert -1 / (1 - 0.98) - 1 < means[True] < 1  # within [-1 / (1 - gamma), 0], up to the fit
+
+
 def test_demonstrations_fill_the_buffer_with_whole_relabelled_episodes():
     """Table 4.3's DRL learns from the scripted expert's episodes too: full-horizon episodes in HER's buffer, whose
     relabelled rewards are Eq. 4.7's; the package cell's expert packs a 2of3 order within 50 steps per product."""
@@ -412,6 +459,8 @@ def test_ddpg_her_with_normalised_inputs_learns_a_reach_in_the_cell():
     ({"suction": "on"}, "rl.suction"),
     ({"steps_per_subtask": 0}, "rl.steps_per_subtask"),
     ({"goal_selection_strategy": "last"}, "rl.goal_selection_strategy"),
+    ({"action_l2": -1.0}, "rl.action_l2"),
+    ({"random_eps": 1.3}, "rl.random_eps"),
     ({"lamda": 0.5}, "rl.lamda"),
 ])
 def test_config_errors_name_the_key(values, key):

@@ -3,8 +3,9 @@ checkpoints.
 
 ``RLS.build(cfg, env=..., seed=...)`` gives :func:`build_ddpg_her` (``rl=ddpg_her``: the DRL baseline of 3.3 and
 Table 4.3) or, with ``guide=...``, :func:`build_guided_ddpg_her` (``rl=ddpg_her_guided``: Algorithm 1,
-:mod:`hrc_lab.rl.guidance`). Both are stable-baselines3's DDPG (one critic, no target smoothing) with its
-``HerReplayBuffer`` on the goal env of :mod:`hrc_lab.rl.goal_env`; exploration adds Gaussian noise to the
+:mod:`hrc_lab.rl.guidance`). Both are stable-baselines3's DDPG (one critic, no target smoothing) with the HER
+paper's action penalty, random exploration actions and clipped targets (:class:`~hrc_lab.rl.ddpg.HerDDPG`) and
+SB3's ``HerReplayBuffer`` on the goal env of :mod:`hrc_lab.rl.goal_env`; exploration adds Gaussian noise to the
 [-1, 1] actions; with ``rl.normalize_inputs`` the networks see the HER paper's normalised inputs
 (:mod:`hrc_lab.rl.normalization`). A checkpoint (:func:`save_agent`) is a folder with SB3's ``agent.zip`` and,
 when it is small enough, the gzipped replay buffer (``replay_buffer.pkl.gz``), which :func:`load_agent` restores
@@ -21,13 +22,14 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from stable_baselines3 import DDPG, HerReplayBuffer
+from stable_baselines3 import HerReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.noise import NormalActionNoise
 from tqdm import tqdm
 
 from hrc_lab.rl.configs import RLConfig
+from hrc_lab.rl.ddpg import HerDDPG
 from hrc_lab.rl.goal_env import HRCGoalEnv
 from hrc_lab.rl.guidance import GuidedDDPG
 from hrc_lab.rl.normalization import NormalizedCombinedExtractor
@@ -46,7 +48,8 @@ def policy_kwargs(cfg: RLConfig) -> dict[str, Any]:
 
 
 def ddpg_her_kwargs(cfg: RLConfig, env: HRCGoalEnv, seed: int) -> dict[str, Any]:
-    """The arguments of stable-baselines3's ``DDPG`` for an ``rl`` config."""
+    """The arguments of :class:`~hrc_lab.rl.ddpg.HerDDPG` (stable-baselines3's ``DDPG`` and the HER paper's
+    additions) for an ``rl`` config."""
     n_actions = env.action_space.shape[0]
     return {
         "policy": "MultiInputPolicy",
@@ -64,13 +67,16 @@ def ddpg_her_kwargs(cfg: RLConfig, env: HRCGoalEnv, seed: int) -> dict[str, Any]
         "replay_buffer_kwargs": {"n_sampled_goal": cfg.n_sampled_goal,
                                  "goal_selection_strategy": cfg.goal_selection_strategy},
         "policy_kwargs": policy_kwargs(cfg),
+        "action_l2": cfg.action_l2,
+        "random_eps": cfg.random_eps,
+        "clip_return": cfg.clip_return,
         "seed": seed,
         "device": "cpu",
         "verbose": 0,
     }
 
 
-def with_silent_logger(agent: DDPG) -> DDPG:
+def with_silent_logger(agent: HerDDPG) -> HerDDPG:
     """Give ``agent`` a logger that writes nothing: metrics go to the run's tracker through
     :class:`EpisodeMetrics`, and without a logger of its own every ``learn`` call makes an empty
     ``SB3-<time>`` folder in the temp directory."""
@@ -78,12 +84,12 @@ def with_silent_logger(agent: DDPG) -> DDPG:
     return agent
 
 
-def build_ddpg_her(cfg: RLConfig, env: HRCGoalEnv, seed: int = 0) -> DDPG:
+def build_ddpg_her(cfg: RLConfig, env: HRCGoalEnv, seed: int = 0) -> HerDDPG:
     """``rl=ddpg_her``: unguided DDPG + HER."""
     if cfg.guidance != "none":
         raise ValueError(f"rl.guidance: ddpg_her is the unguided agent, got guidance '{cfg.guidance}'; "
                          "use rl=ddpg_her_guided")
-    return with_silent_logger(DDPG(**ddpg_her_kwargs(cfg, env, seed)))
+    return with_silent_logger(HerDDPG(**ddpg_her_kwargs(cfg, env, seed)))
 
 
 def build_guided_ddpg_her(cfg: RLConfig, env: HRCGoalEnv, guide: Any, seed: int = 0) -> GuidedDDPG:
@@ -193,7 +199,7 @@ class PhaseTimes(BaseCallback):
         return True
 
 
-def learn_episodes(agent: DDPG, episodes: int, callback: BaseCallback | None = None) -> DDPG:
+def learn_episodes(agent: HerDDPG, episodes: int, callback: BaseCallback | None = None) -> HerDDPG:
     """Train until the agent has run ``episodes`` episodes in all (a resumed agent continues its count). Every
     episode of the goal env has ``horizon`` steps, so this is ``episodes x horizon`` control steps, and the last
     episode is stored and trained on like the others."""
@@ -205,7 +211,7 @@ def learn_episodes(agent: DDPG, episodes: int, callback: BaseCallback | None = N
     return agent
 
 
-def add_demonstrations(agent: DDPG, env: HRCGoalEnv, episodes: int, seed: int = 0) -> float:
+def add_demonstrations(agent: HerDDPG, env: HRCGoalEnv, episodes: int, seed: int = 0) -> float:
     """Put ``episodes`` episodes of the scripted expert (:class:`~hrc_lab.env.robot.expert.ScriptedExpert`) acting in
     ``env`` into the agent's replay buffer, as the thesis' DRL baseline is "trained using demonstrations" (Table 4.3);
     HER relabels them like the agent's own. Each episode runs the env's full horizon (the arm holds still with
@@ -234,7 +240,7 @@ def add_demonstrations(agent: DDPG, env: HRCGoalEnv, episodes: int, seed: int = 
     return float(np.mean(successes)) if successes else float("nan")
 
 
-def run_episode(agent: DDPG, env: HRCGoalEnv, seed: int | None = None) -> tuple[dict, int | None]:
+def run_episode(agent: HerDDPG, env: HRCGoalEnv, seed: int | None = None) -> tuple[dict, int | None]:
     """One episode of the deterministic policy from the env's next scene (reseeded with ``seed`` when given):
     the last step's info and the step at which the goal was first reached (None if never)."""
     obs, _ = env.reset(seed=seed)
@@ -248,7 +254,7 @@ def run_episode(agent: DDPG, env: HRCGoalEnv, seed: int | None = None) -> tuple[
     return info, first
 
 
-def evaluate(agent: DDPG, env: HRCGoalEnv, episodes: int, seed: int = 0) -> dict[str, float]:
+def evaluate(agent: HerDDPG, env: HRCGoalEnv, episodes: int, seed: int = 0) -> dict[str, float]:
     """Success rate (Eq. 3.7 / 4.7 at the episode's last step), collision rate and mean final goal distance of
     the deterministic policy over ``episodes`` scenes (episode k seeded ``seed + k``)."""
     infos = [run_episode(agent, env, seed=seed + k)[0] for k in range(episodes)]
@@ -270,7 +276,7 @@ def _filled_bytes(buffer: Any) -> int:
     return total * buffer.size() // buffer.buffer_size
 
 
-def save_agent(agent: DDPG, directory: str | pathlib.Path, replay_buffer: bool | None = None,
+def save_agent(agent: HerDDPG, directory: str | pathlib.Path, replay_buffer: bool | None = None,
                max_buffer_bytes: int = MAX_BUFFER_BYTES) -> list[pathlib.Path]:
     """Save ``agent`` into ``directory``: SB3's ``agent.zip`` (networks, optimisers, counters, and a
     :class:`GuidedDDPG`'s guidance state), plus the replay buffer, pickled and gzipped (``replay_buffer.pkl.gz``;
@@ -289,13 +295,13 @@ def save_agent(agent: DDPG, directory: str | pathlib.Path, replay_buffer: bool |
     return written
 
 
-def load_agent(directory: str | pathlib.Path, env: HRCGoalEnv, guide: Any = None) -> DDPG:
+def load_agent(directory: str | pathlib.Path, env: HRCGoalEnv, guide: Any = None) -> HerDDPG:
     """The agent saved by :func:`save_agent`, on ``env``; a :class:`GuidedDDPG` when ``guide`` is given (the
     guide is not saved). A saved replay buffer is restored as ``OffPolicyAlgorithm.load_replay_buffer`` does
     (HER's buffer gets the env back, an unfinished last episode is closed), so :func:`learn_episodes` continues
     where the saved run stopped."""
     directory = pathlib.Path(directory)
-    cls = GuidedDDPG if guide is not None else DDPG
+    cls = GuidedDDPG if guide is not None else HerDDPG
     agent = cls.load(directory / AGENT_FILE, env=env, device="cpu")
     if guide is not None:
         agent.guide = guide

@@ -28,10 +28,10 @@ from __future__ import annotations
 from typing import Any, Protocol
 
 import numpy as np
-from stable_baselines3 import DDPG
 
 from hrc_lab.env.robot.cell import PICK, PLACE
 from hrc_lab.motion.two_level import correction_input
+from hrc_lab.rl.ddpg import HerDDPG
 
 
 def needs_correction(predicted: np.ndarray, subgoal: np.ndarray, delta_g: float) -> bool:
@@ -130,10 +130,10 @@ class CorrectionGuide:
         return self.ndp.config.mode
 
 
-class GuidedDDPG(DDPG):
-    """DDPG whose exploration Algorithm 1 corrects (module docstring). One environment (a DummyVecEnv of one
-    :class:`~hrc_lab.rl.goal_env.HRCGoalEnv`). ``guide`` is not saved with the agent: pass it again after
-    :meth:`load` (``hrc_lab.rl.agent.load_agent`` does)."""
+class GuidedDDPG(HerDDPG):
+    """DDPG (the HER paper's, :class:`~hrc_lab.rl.ddpg.HerDDPG`) whose exploration Algorithm 1 corrects (module
+    docstring). One environment (a DummyVecEnv of one :class:`~hrc_lab.rl.goal_env.HRCGoalEnv`). ``guide`` is
+    not saved with the agent: pass it again after :meth:`load` (``hrc_lab.rl.agent.load_agent`` does)."""
 
     def __init__(self, *args, guide: Guide | None = None, lam: float = 0.0, delta_g: float = 0.05,
                  guidance_seed: int | None = None, **kwargs) -> None:
