@@ -82,13 +82,29 @@ def inputs_text(runs: pd.DataFrame) -> str:
     return " or ".join(names.get(v, f"rl.normalize_inputs={v}") for v in sorted(values))
 
 
+def ddpg_text(runs: pd.DataFrame) -> str:
+    """Whether the runs' DDPG had the HER paper's action penalty, random actions and clipped targets
+    (``rl.action_l2``, ``rl.random_eps``, ``rl.clip_return``; :class:`hrc_lab.rl.ddpg.HerDDPG`)."""
+    columns = [f"{PARAM_PREFIX}rl.{key}" for key in ("action_l2", "random_eps", "clip_return")]
+    if not all(c in runs for c in columns):
+        return "stable-baselines3's DDPG without the HER paper's additions"  # runs from before the keys existed
+    texts = set()
+    for l2, eps, clip in runs[columns].itertuples(index=False):
+        if l2 != l2:  # NaN: a run from before the keys existed
+            texts.add("stable-baselines3's DDPG without the HER paper's additions")
+        else:
+            texts.add(f"the HER paper's DDPG (action penalty {float(l2):g}, random actions {float(eps):.0%}, "
+                      f"targets {'clipped' if str(clip) == 'True' else 'not clipped'})")
+    return " or ".join(sorted(texts))
+
+
 def epoch_text(runs: pd.DataFrame) -> str:
     return (f"An epoch: {amount(runs, 'protocol.episodes_per_epoch', 'training episodes')} of "
             f"{amount(runs, 'rl.steps_per_subtask', 'control steps')}, then "
             f"{amount(runs, 'protocol.eval_episodes', 'evaluation episodes')} of the deterministic policy on held-out "
             f"scenes; {amount(runs, 'protocol.epochs', 'epochs')} per subtask, subtasks in sequence (thesis: 550 "
             "epochs of Algorithm 1, one episode and one update each). Agent: DDPG + HER, hidden layers "
-            f"{net_arch(runs)}, {inputs_text(runs)}; planner trained on "
+            f"{net_arch(runs)}, {inputs_text(runs)}, {ddpg_text(runs)}; planner trained on "
             f"{amount(runs, 'protocol.demos', 'expert demonstrations')}. Final SR: the last epoch's evaluation, "
             f"mean over the plan's subtasks; mean ± std over seeds {sorted(runs.seed.unique())}.")
 
