@@ -118,7 +118,8 @@ def fig_3_13(runs: pd.DataFrame) -> Section:
               "guidance (λ = 1) overfits to one behaviour, pure exploration (λ = 0) is sample-inefficient, so hybrid "
               "beats both.")
     intro = ("Algorithm 1: DDPG + HER whose actions the two-level planner corrects (δg = "
-             f"{amount(runs, 'rl.delta_g', 'm')}) in a fraction λ of the episodes, on the error-correction "
+             f"{amount(runs, 'rl.delta_g', 'm')}) in a fraction λ of the episodes, the next sub-goal planned after "
+             f"H_lo = {amount(runs, 'rl.subgoal_steps', 'steps')} (or once reached), on the error-correction "
              f"experiments, δr = {amount(runs, 'rl.delta_r', 'm')}. " + epoch_text(runs))
     return curves_section(runs, "Fig. 3.13: hybrid guidance vs full guidance vs pure exploration", intro, thesis,
                           "fig_3_13.png")
