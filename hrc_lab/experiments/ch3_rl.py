@@ -80,7 +80,8 @@ EPOCH_METRICS = ("success_rate", "collision_rate", "final_distance", "train_succ
 
 def resume_agent(ctx: RunContext, env, guide, subtask: int):
     """With ``resume_from``: the killed run's latest agent of ``subtask`` (and its replay buffer when it was
-    saved), or None when that run saved none. (A lambda-0 agent loads as plain DDPG: it never corrects anyway.)"""
+    saved), or None when that run saved none. (A lambda-0 agent loads as the unguided ``HerDDPG``: it never
+    corrects anyway.)"""
     from hrc_lab.rl.agent import AGENT_FILE, BUFFER_FILE, load_agent
 
     if not ctx.cfg.resume_from:

@@ -10,6 +10,8 @@ guidance of Algorithm 1; ``conf/rl/<name>.yaml`` selects an agent by ``name``.
 - :mod:`~hrc_lab.rl.guidance`: Algorithm 1 (3.2.3, results 3.4.3, Fig. 3.13): in an episode guided with
   probability lambda, the policy's action is replaced by the neural dynamic planner's d(Delta_t) towards the
   sub-goal planner's p'_T when the end effector it would reach is farther than delta_g from p'_T;
+- :mod:`~hrc_lab.rl.ddpg`: stable-baselines3's DDPG with the HER paper's action penalty, random exploration
+  actions and clipped critic targets (``HerDDPG``), the base of both agents;
 - :mod:`~hrc_lab.rl.agent`: the stable-baselines3 agents built from an ``rl`` config (``RLS.build``), training
   by episodes, evaluation, and checkpoints for MLflow.
 """
