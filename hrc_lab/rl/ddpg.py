@@ -32,32 +32,18 @@ class HerDDPG(DDPG):
 
     def __init__(self, *args, action_l2: float = 0.0, random_eps: float = 0.0, clip_return: bool = False,
                  **kwargs) -> None:
-        if action_l2 < 0:
-            raise ValueError(f"action_l2 must be >= 0, got {action_l2}")
-        if not 0 <= random_eps <= 1:
-            raise ValueError(f"random_eps must be in [0, 1], got {random_eps}")
+        # validated with the rl config (hrc_lab.rl.configs.RLConfig), which is what builds every agent
         self.action_l2, self.random_eps, self.clip_return = action_l2, random_eps, clip_return
         super().__init__(*args, **kwargs)
 
     def _sample_action(self, learning_starts: int, action_noise=None, n_envs: int = 1) -> tuple[np.ndarray, np.ndarray]:
         action, buffer_action = super()._sample_action(learning_starts, action_noise, n_envs)
         if self.random_eps > 0 and self.num_timesteps >= learning_starts:
-            for i in range(n_envs):
-                if self.np_random.random() < self.random_eps:
+            for i in range(n_envs):  # the action space's generator, which SB3 seeds with the agent's seed
+                if self.action_space.np_random.random() < self.random_eps:
                     buffer_action[i] = self.policy.scale_action(self.action_space.sample())
             action = self.policy.unscale_action(buffer_action)
         return action, buffer_action
-
-    @property
-    def np_random(self) -> np.random.Generator:
-        """The generator of the random-action draws, seeded from the agent's seed (not saved: a resumed run
-        draws anew)."""
-        if getattr(self, "_np_random", None) is None:
-            self._np_random = np.random.default_rng(self.seed)
-        return self._np_random
-
-    def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "_np_random"]
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         self.policy.set_training_mode(True)
