@@ -5,7 +5,6 @@ import pytest
 
 from hrc_lab.env.robot.spec import PackageToOrderSpec, sample_episode, stage_observations
 from hrc_lab.reasoning.encoding import (
-    POSITION_SCALE,
     chain_graph,
     flat_vector,
     goal_table,
@@ -27,7 +26,7 @@ def test_chain_graph_has_one_node_per_product_and_next_neighbour_edges():
     assert graph.x.shape == (5, 4)
     assert graph.edge_index.tolist() == [[0, 1, 2, 3], [1, 2, 3, 4]]
     assert graph.x[:, 3].tolist() == [0, 1, 0, 1, 1]  # feature I: selected or not
-    expected = (obs.positions[2] - [0, 0, SPEC.table_z]) * POSITION_SCALE
+    expected = (obs.positions[2] - [0, 0, SPEC.table_z]) * 10  # decimetres, the default frame
     np.testing.assert_allclose(graph.x[2, :3].numpy(), expected, rtol=1e-6)
     both = chain_graph(obs, SPEC, "bidirectional")
     assert both.edge_index.shape == (2, 8)
@@ -54,7 +53,7 @@ def test_goal_table_rows_follow_p_o():
     placing = observations()[1]  # product 2 (index 1) is held, its goal is slot 3
     table = goal_table(placing, SPEC)
     centre = [*placing.slot_positions[:, :2].mean(axis=0), SPEC.table_z]
-    slot3 = (placing.slot_positions[2] - centre) * POSITION_SCALE
+    slot3 = (placing.slot_positions[2] - centre) * 10  # decimetres, the default frame
     np.testing.assert_allclose(table[0], slot3)  # row 0: the held product's goal
     np.testing.assert_allclose(table[2], slot3)  # row 1+i: product i's goal
     np.testing.assert_array_equal(table[1], 0)  # product 1 is not selected
@@ -88,3 +87,31 @@ def test_flat_vector_needs_every_product():
     assert flat_vector(observations()[0], SPEC).shape == (20,)
     with pytest.raises(ValueError, match="every product present"):
         flat_vector(observations(n_missing=1)[0], SPEC)
+
+
+def test_position_frames_move_and_scale_every_position():
+    """``reasoning.position_frame`` (issue 24's ablation): table_dm = table_m x 10; world_m = table_m with the
+    table top's height added to z; goals relative to the box in the frame's unit; I untouched."""
+    obs = observations()[1]  # a placing stage: a goal in every encoding
+    for encode in (lambda f: chain_graph(obs, SPEC, frame=f).x, lambda f: object_goal_graph(obs, SPEC, "task", f).x,
+                   lambda f: flat_vector(obs, SPEC, f).reshape(5, 4)):
+        table_m, table_dm, world_m = (np.asarray(encode(f)) for f in ("table_m", "table_dm", "world_m"))
+        np.testing.assert_allclose(table_dm[:, :3], table_m[:, :3] * 10, rtol=1e-6)
+        np.testing.assert_allclose(world_m[:, :3], table_m[:, :3] + [0, 0, SPEC.table_z], rtol=1e-6)
+        np.testing.assert_array_equal(table_dm[:, 3:], table_m[:, 3:])
+    np.testing.assert_allclose(goal_table(obs, SPEC, "table_dm"), goal_table(obs, SPEC, "table_m") * 10)
+    np.testing.assert_allclose(goal_table(obs, SPEC, "world_m"), goal_table(obs, SPEC, "table_m"))
+
+
+def test_reasoners_encode_in_their_configured_position_frame():
+    from hrc_lab.reasoning.configs import REASONERS
+
+    obs = observations()[1]
+    for name in ("ours", "mlp", "gnn"):
+        reasoner = REASONERS.build(REASONERS.validate({"name": name, "position_frame": "world_m"}), spec=SPEC, seed=0)
+        data = reasoner.encode(obs)
+        features = data.x_flat.reshape(5, 4) if name == "mlp" else data.x
+        assert float(features[:, 2].min()) >= SPEC.table_z  # world z: on or above the table top
+        np.testing.assert_allclose(data.goals[0].numpy(), goal_table(obs, SPEC, "world_m"), rtol=1e-6)
+    with pytest.raises(ValueError, match="reasoning.position_frame"):
+        REASONERS.validate({"name": "mlp", "position_frame": "world_mm"})

@@ -90,4 +90,4 @@ class ChainSAGEReasoner(TorchReasoner):
         return TwoStageNet(encoder, StageClassifier(self.n_o, self.n_g, self.cfg.classifier_hidden))
 
     def encode(self, obs: StageObservation) -> Data:
-        return chain_graph(obs, self.spec, self.cfg.edges)
+        return chain_graph(obs, self.spec, self.cfg.edges, self.cfg.position_frame)

@@ -8,6 +8,13 @@ from hrc_lab.registry import Registry
 
 REASONERS = Registry("reasoning")
 
+# How positions enter the package-to-order encodings (``reasoning.position_frame``; hrc_lab/reasoning/encoding.py):
+# (origin, scale). "table_dm": relative to the centre of the table top, in decimetres, so that features are O(1)
+# (hrc_lab's default); "table_m": the same in metres; "world_m": the world frame in metres as the simulator reports
+# it (the table top 0.8 m up). The thesis does not say how its (x, y, z) node features are scaled or centred.
+POSITION_FRAMES = {"table_dm": ("table", 10.0), "table_m": ("table", 1.0), "world_m": ("world", 1.0)}
+DEFAULT_POSITION_FRAME = "table_dm"
+
 
 @dataclass
 class TorchReasonerConfig:
@@ -23,7 +30,21 @@ class TorchReasonerConfig:
 
 
 @dataclass
-class TwoStageConfig(TorchReasonerConfig):
+class PackageToOrderReasonerConfig(TorchReasonerConfig):
+    """A torch reasoner of Ch.4's package-to-order observations: ``position_frame`` names the frame and unit of
+    every position it reads (:data:`POSITION_FRAMES`)."""
+
+    position_frame: str = DEFAULT_POSITION_FRAME
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.position_frame not in POSITION_FRAMES:
+            raise ValueError(f"reasoning.position_frame must be one of {sorted(POSITION_FRAMES)}, "
+                             f"got {self.position_frame!r}")
+
+
+@dataclass
+class TwoStageConfig(PackageToOrderReasonerConfig):
     """An encoder giving P_o (``layers`` x ``hidden``) and the stage classifier giving P_g (ours, mlp)."""
 
     hidden: int = 64
@@ -57,7 +78,7 @@ FlatMLPConfig = TwoStageConfig
 
 
 @dataclass
-class ObjectGoalGNNConfig(TorchReasonerConfig):
+class ObjectGoalGNNConfig(PackageToOrderReasonerConfig):
     hidden: int = 64
     layers: int = 3
     label_scheme: str = "order"  # "order": [74]'s labels (gnn); "task": the thesis' labels (gnn_task)

@@ -1,10 +1,13 @@
 """Observation encodings of the reasoning methods: the chain graph of Sec. 4.2.1, the object-goal graph of the GNN
 of [74] (Sec. 4.4.1) and the flat vector of the MLP and RF baselines.
 
-Positions enter every encoding relative to the centre of the table top and in decimetres (x10), so that features
-are O(1). Every encoding also carries ``goals`` (m+1, 3): row 0 is the goal of the product in the gripper (used
-when P_o points at the packaging area), row 1+i the goal of product i (zeros if unselected). The two-stage models
-read the selected goal g_selected = goals[argmax P_o] from it (teacher-forced with the label in training).
+Positions enter every encoding in the ``frame`` of :data:`~hrc_lab.reasoning.configs.POSITION_FRAMES` (the torch
+reasoners' ``reasoning.position_frame``): by default relative to the centre of the table top and in decimetres,
+so that features are O(1); goals are always relative to the box (below), in the frame's unit.
+
+Every encoding also carries ``goals`` (m+1, 3): row 0 is the goal of the product in the gripper (used when P_o
+points at the packaging area), row 1+i the goal of product i (zeros if unselected). The two-stage models read the
+selected goal g_selected = goals[argmax P_o] from it (teacher-forced with the label in training).
 
 Goals are expressed in x-y relative to the centre of the box's slots (z above the table, so no goal is all zeros):
 a position-specified label names "a specific goal
@@ -22,16 +25,16 @@ import torch
 from torch_geometric.data import Data
 
 from hrc_lab.env.robot.spec import PackageToOrderSpec, StageObservation
-from hrc_lab.reasoning.configs import CHAIN_EDGES
-
-POSITION_SCALE = 10.0
+from hrc_lab.reasoning.configs import CHAIN_EDGES, DEFAULT_POSITION_FRAME, POSITION_FRAMES
 
 
-def scaled(positions: np.ndarray, spec: PackageToOrderSpec) -> np.ndarray:
-    return (positions - np.array([0.0, 0.0, spec.table_z])) * POSITION_SCALE
+def scaled(positions: np.ndarray, spec: PackageToOrderSpec, frame: str = DEFAULT_POSITION_FRAME) -> np.ndarray:
+    """World positions (metres) in ``frame``."""
+    origin, scale = POSITION_FRAMES[frame]
+    return (positions - np.array([0.0, 0.0, spec.table_z if origin == "table" else 0.0])) * scale
 
 
-def goal_table(obs: StageObservation, spec: PackageToOrderSpec) -> np.ndarray:
+def goal_table(obs: StageObservation, spec: PackageToOrderSpec, frame: str = DEFAULT_POSITION_FRAME) -> np.ndarray:
     """(m+1, 3) scaled goal positions, x-y relative to the centre of the box's slots, indexed like P_o (see module
     docstring); zeros where there is no goal."""
     m = spec.n_objects
@@ -41,7 +44,7 @@ def goal_table(obs: StageObservation, spec: PackageToOrderSpec) -> np.ndarray:
         goals[1 + product] = obs.goal_of(product)
     nonzero = np.any(goals != 0, axis=1)
     centre = np.array([*obs.slot_positions[:, :2].mean(axis=0), spec.table_z])
-    goals[nonzero] = (goals[nonzero] - centre) * POSITION_SCALE
+    goals[nonzero] = (goals[nonzero] - centre) * POSITION_FRAMES[frame][1]
     return goals
 
 
@@ -55,11 +58,11 @@ def order_labels(obs: StageObservation) -> tuple[int, int]:
     return 1 + obs.target, 1 + obs.order
 
 
-def _common(obs: StageObservation, spec: PackageToOrderSpec, labels: tuple[int, int]) -> dict:
+def _common(obs: StageObservation, spec: PackageToOrderSpec, labels: tuple[int, int], frame: str) -> dict:
     return dict(
         o_label=torch.tensor([labels[0]]),
         g_label=torch.tensor([labels[1]]),
-        goals=torch.tensor(goal_table(obs, spec), dtype=torch.float32).unsqueeze(0),
+        goals=torch.tensor(goal_table(obs, spec, frame), dtype=torch.float32).unsqueeze(0),
     )
 
 
@@ -78,21 +81,23 @@ def chain_edges(n: int, edges: str = "chain") -> np.ndarray:
     return np.concatenate(links, axis=1)
 
 
-def chain_graph(obs: StageObservation, spec: PackageToOrderSpec, edges: str = "chain") -> Data:
+def chain_graph(obs: StageObservation, spec: PackageToOrderSpec, edges: str = "chain",
+                frame: str = DEFAULT_POSITION_FRAME) -> Data:
     """Sec. 4.2.1: one node per present product in product order with features (x, y, z, I), linked by
     :func:`chain_edges`. Absent products (4.4.5) simply have no node."""
     present = np.flatnonzero(obs.present)
-    x = np.column_stack([scaled(obs.positions[present], spec), obs.selected[present]])
+    x = np.column_stack([scaled(obs.positions[present], spec, frame), obs.selected[present]])
     edge_index = torch.tensor(chain_edges(len(present), edges), dtype=torch.long)
     return Data(
         x=torch.tensor(x, dtype=torch.float32),
         edge_index=edge_index,
         product=torch.tensor(present),
-        **_common(obs, spec, task_labels(obs)),
+        **_common(obs, spec, task_labels(obs), frame),
     )
 
 
-def object_goal_graph(obs: StageObservation, spec: PackageToOrderSpec, label_scheme: str) -> Data:
+def object_goal_graph(obs: StageObservation, spec: PackageToOrderSpec, label_scheme: str,
+                      frame: str = DEFAULT_POSITION_FRAME) -> Data:
     """The graph of [74] as described in 4.4.1: fully connected object and goal nodes with features
     (x, y, z, is_goal, type one-hot over the m products, fulfilled, I). A goal node exists for every selected
     product, at its assigned slot, and carries that product's type; "fulfilled" marks a packed product / filled goal."""
@@ -100,28 +105,30 @@ def object_goal_graph(obs: StageObservation, spec: PackageToOrderSpec, label_sch
     rows = []
     for product in np.flatnonzero(obs.present):
         kind = np.eye(m)[product]
-        rows.append([*scaled(obs.positions[product], spec), 0.0, *kind, obs.packed[product], obs.selected[product]])
+        rows.append([*scaled(obs.positions[product], spec, frame), 0.0, *kind, obs.packed[product],
+                     obs.selected[product]])
     for product in np.flatnonzero(obs.selected):
         kind = np.eye(m)[product]
-        goal = scaled(obs.goal_of(product), spec)
+        goal = scaled(obs.goal_of(product), spec, frame)
         rows.append([*goal, 1.0, *kind, obs.packed[product], 1.0])
     n = len(rows)
     src, dst = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
     off_diagonal = src != dst
     edge_index = torch.tensor(np.stack([src[off_diagonal], dst[off_diagonal]]), dtype=torch.long)
     labels = order_labels(obs) if label_scheme == "order" else task_labels(obs)
-    return Data(x=torch.tensor(rows, dtype=torch.float32), edge_index=edge_index, **_common(obs, spec, labels))
+    return Data(x=torch.tensor(rows, dtype=torch.float32), edge_index=edge_index,
+                **_common(obs, spec, labels, frame))
 
 
-def flat_vector(obs: StageObservation, spec: PackageToOrderSpec) -> np.ndarray:
+def flat_vector(obs: StageObservation, spec: PackageToOrderSpec, frame: str = DEFAULT_POSITION_FRAME) -> np.ndarray:
     """(4m,) the chain graph's node features side by side. Needs every product present: a flat input has a fixed
     size, which is why the thesis runs the missing-products scenario with graph methods only."""
     if not obs.present.all():
         raise ValueError("flat observations need every product present (missing products change the input size)")
-    return np.column_stack([scaled(obs.positions, spec), obs.selected]).reshape(-1)
+    return np.column_stack([scaled(obs.positions, spec, frame), obs.selected]).reshape(-1)
 
 
-def flat_data(obs: StageObservation, spec: PackageToOrderSpec) -> Data:
+def flat_data(obs: StageObservation, spec: PackageToOrderSpec, frame: str = DEFAULT_POSITION_FRAME) -> Data:
     """The flat vector wrapped as a one-row graph-level sample, so every torch method shares one data loader."""
-    x_flat = torch.tensor(flat_vector(obs, spec), dtype=torch.float32).unsqueeze(0)
-    return Data(x_flat=x_flat, num_nodes=1, **_common(obs, spec, task_labels(obs)))
+    x_flat = torch.tensor(flat_vector(obs, spec, frame), dtype=torch.float32).unsqueeze(0)
+    return Data(x_flat=x_flat, num_nodes=1, **_common(obs, spec, task_labels(obs), frame))

@@ -31,4 +31,4 @@ class FlatMLPReasoner(TorchReasoner):
         return TwoStageNet(encoder, StageClassifier(self.n_o, self.n_g, self.cfg.classifier_hidden))
 
     def encode(self, obs: StageObservation) -> Data:
-        return flat_data(obs, self.spec)
+        return flat_data(obs, self.spec, self.cfg.position_frame)

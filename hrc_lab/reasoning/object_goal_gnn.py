@@ -44,7 +44,7 @@ class ObjectGoalGNNReasoner(TorchReasoner):
         return ObjectGoalGNN(in_channels, self.cfg.hidden, self.n_o, self.n_g, self.cfg.layers)
 
     def encode(self, obs: StageObservation) -> Data:
-        return object_goal_graph(obs, self.spec, self.cfg.label_scheme)
+        return object_goal_graph(obs, self.spec, self.cfg.label_scheme, self.cfg.position_frame)
 
     def labels(self, observations: list[StageObservation]) -> np.ndarray:
         scheme = order_labels if self.cfg.label_scheme == "order" else task_labels
