@@ -287,6 +287,10 @@ def test_table_4_1_says_whether_the_mlp_falls_below_ours_as_in_the_thesis():
     assert "the MLP is below ours, as in the thesis." in SECTIONS["table_4_1"](shorter.assign(
         sr=[1.0, 1.0, 0.96, 0.86])).markdown
     assert "**MLP.**" not in SECTIONS["table_4_1"](runs[runs.method == "ours"]).markdown
+    # the position frame: the runs' own, or the default for runs from before the key
+    assert "positions relative to the table top's centre, in decimetres (`reasoning.position_frame` table_dm)" in text
+    world = SECTIONS["table_4_1"](runs.assign(**{"param.reasoning.position_frame": ["world_m"] * 4})).markdown
+    assert "positions in the world frame, in metres (`reasoning.position_frame` world_m)" in world
 
 
 def test_table_4_2_states_its_test_conditions():

@@ -9,7 +9,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.reasoning.configs import DEFAULT_POSITION_FRAME  # noqa: E402
+from hrc_lab.reasoning.configs import DEFAULT_POSITION_FRAME, POSITION_FRAMES  # noqa: E402
 from hrc_lab.report.ch4_conditions import conditions_paragraph  # noqa: E402
 from hrc_lab.report.plots import success_bars  # noqa: E402
 from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting  # noqa: E402
@@ -86,9 +86,13 @@ def table_4_1(runs: pd.DataFrame) -> Section:
     )
 
 
-FRAME_TEXT = {"table_dm": "relative to the table top's centre in decimetres",
-              "table_m": "relative to the table top's centre in metres",
-              "world_m": "in the world frame in metres (the table top 0.8 m up)"}
+def _frame_text(frame: str) -> str:
+    """How positions entered the runs' encodings, in words, from :data:`POSITION_FRAMES`."""
+    if frame not in POSITION_FRAMES:
+        return frame  # runs that differ ("table_dm or world_m")
+    origin, scale = POSITION_FRAMES[frame]
+    where = "relative to the table top's centre" if origin == "table" else "in the world frame"
+    return f"{where}, in {'decimetres' if scale == 10 else 'metres' if scale == 1 else f'metres x {scale:g}'}"
 
 
 def _mlp_paragraph(stats: pd.DataFrame, thesis: dict, runs: pd.DataFrame) -> list[str]:
@@ -109,7 +113,7 @@ def _mlp_paragraph(stats: pd.DataFrame, thesis: dict, runs: pd.DataFrame) -> lis
     return ["", f"**MLP.** The thesis' MLP falls below ours at {' / '.join(cells)} ({theirs['mlp']} against "
             f"{theirs['ours']}), which it attributes to variations in object positions. Here, after "
             f"{setting(runs, 'reasoning.steps')} training steps (`reasoning.steps`), with each product in {shuffle} "
-            f"(`env.pending_shuffle`) and positions {FRAME_TEXT.get(frame, frame)} (`reasoning.position_frame` "
+            f"(`env.pending_shuffle`) and positions {_frame_text(frame)} (`reasoning.position_frame` "
             f"{frame}): MLP {here['mlp']}, ours {here['ours']}: "
             + ("the MLP is below ours, as in the thesis." if below else "the thesis' drop is not reproduced.")
             + " Tried, each an ablation section below when its runs are in the store: shorter training for both "
@@ -119,7 +123,6 @@ def _mlp_paragraph(stats: pd.DataFrame, thesis: dict, runs: pd.DataFrame) -> lis
             "positions as the simulator reports them, in the world frame and in metres, or centred on the table "
             "in metres (`reasoning.position_frame=world_m,table_m`; the thesis does not say how its position "
             "features are centred or scaled)."]
-
 
 
 def _lambda_columns(runs: pd.DataFrame, case: str) -> dict[float, str]:
