@@ -123,8 +123,13 @@ def _duration(seconds: float) -> str:
 
 
 def print_summary(rows: list[tuple[str, float | None, str]]) -> None:
+    """Each step's wall time and status, the total, and the machine they were measured on."""
+    from hrc_lab.tracking import machine_identity
+
+    machine = machine_identity()
     width = max([len("step")] + [len(name) for name, _, _ in rows])
-    print(f"\n{'step':<{width}}  {'wall':>9}  status")
+    print(f"\nmachine: {machine['cpu']}, {machine['cpu_cores']} cores, torch kernels {machine['cpu_capability']}")
+    print(f"{'step':<{width}}  {'wall':>9}  status")
     for name, seconds, status in rows:
         print(f"{name:<{width}}  {_duration(seconds) if seconds is not None else '-':>9}  {status}")
     total = sum(seconds for _, seconds, _ in rows if seconds is not None)

@@ -6,6 +6,7 @@ never share state; the tracking URI is one config key (``logger.tracking_uri``),
 from __future__ import annotations
 
 import os
+import platform
 import re
 import socket
 import tempfile
@@ -74,10 +75,33 @@ def process_identity(pid: int | None = None) -> dict[str, str]:
     return {"host": socket.gethostname(), "pid": str(pid), "process_start": process_start(pid) or "unknown"}
 
 
+def machine_identity() -> dict[str, str]:
+    """Tags that say what a job's wall times and float rounding depend on: the CPU (``cpu``: its model name and
+    family/model/stepping as /proc/cpuinfo gives them), the cores this process may use, and the instruction set torch
+    dispatches its CPU kernels to (``cpu_capability``, e.g. AVX2 or AVX512): two machines of the same size can
+    differ several times in speed, and a job's numbers within their seed spread (README, "Wall times")."""
+    import torch
+
+    fields: dict[str, str] = {}
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            key, _, value = line.partition(":")
+            fields.setdefault(key.strip(), value.strip())
+    except OSError:  # not Linux
+        pass
+    name = fields.get("model name") or platform.processor() or platform.machine()
+    if "cpu family" in fields:
+        model, stepping = fields.get("model", "?"), fields.get("stepping", "?")
+        name += f" (family {fields['cpu family']} model {model} stepping {stepping})"
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return {"cpu": name, "cpu_cores": str(cores), "cpu_capability": torch.backends.cpu.get_cpu_capability()}
+
+
 class RunTracker:
-    """One MLflow run; use as a context manager: leaving it normally marks the run FINISHED, an exception FAILED,
-    SIGTERM/SIGINT (:class:`RunInterrupted`) KILLED with the signal in the ``signal`` tag. ``parent_run_id`` names
-    the killed run this one resumes (tag ``resumed_from``); its checkpoints are read by :meth:`resume_checkpoint`."""
+    """One MLflow run, tagged with :func:`process_identity` and :func:`machine_identity`; use as a context manager:
+    leaving it normally marks the run FINISHED, an exception FAILED, SIGTERM/SIGINT (:class:`RunInterrupted`)
+    KILLED with the signal in the ``signal`` tag. ``parent_run_id`` names the killed run this one resumes (tag
+    ``resumed_from``); its checkpoints are read by :meth:`resume_checkpoint`."""
 
     def __init__(self, cfg: LoggerConfig, experiment: str, run_name: str, tags: dict[str, str],
                  parent_run_id: str | None = None) -> None:
@@ -85,7 +109,7 @@ class RunTracker:
         self.client = MlflowClient(self.tracking_uri)
         self.experiment_id = ensure_experiment(self.client, experiment, cfg.artifact_root)
         self.run_name = run_name
-        self.tags = {**tags, **process_identity()}
+        self.tags = {**tags, **process_identity(), **machine_identity()}
         if parent_run_id:
             self.tags["resumed_from"] = parent_run_id
         self.parent_run_id = parent_run_id

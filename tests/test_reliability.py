@@ -77,7 +77,10 @@ def test_an_exception_marks_the_run_failed(tmp_path):
     logger = LoggerConfig(tracking_uri=f"sqlite:///{tmp_path}/mlflow.db", artifact_root=str(tmp_path / "art"))
     with pytest.raises(RuntimeError), RunTracker(logger, "exp", "job", {}) as tracker:
         raise RuntimeError("boom")
-    assert MlflowClient(tracker.tracking_uri).get_run(tracker.run_id).info.status == "FAILED"
+    run = MlflowClient(tracker.tracking_uri).get_run(tracker.run_id)
+    assert run.info.status == "FAILED"
+    assert run.data.tags["cpu"] and int(run.data.tags["cpu_cores"]) >= 1  # what its wall times depend on
+    assert run.data.tags["cpu_capability"] == torch.backends.cpu.get_cpu_capability()
 
 
 def test_stale_marks_runs_whose_process_is_gone(tmp_path):

@@ -59,6 +59,7 @@ def test_run_stops_at_the_first_failure(monkeypatch, capsys):
     assert "step 'sweep broken' failed (exit 3)" in captured.err
     summary = captured.out[captured.out.index("\nstep ") :]
     assert "sweep ok" in summary and "FAILED (exit 3)" in summary and "not run" in summary and "total" in summary
+    assert "\nmachine: " in captured.out and " cores, torch kernels " in captured.out  # what the times depend on
     assert "must not run" not in captured.out
 
 
