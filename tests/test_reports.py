@@ -143,6 +143,35 @@ def test_sweep_option_restricts_every_section_to_one_sweep(store, tmp_path, caps
     assert "0.10 ± 0.00" in row_of(section_text(markdown, f"{TITLE} — ablation: {ABLATION}"))
 
 
+def test_update_rebuilds_what_the_store_holds_and_keeps_the_other_sections(store, tmp_path):
+    out = tmp_path / "reports"
+    first = build_topic("ch4_reasoning", store.tracking_uri, out).read_text()
+    ablation = section_text(first, f"{TITLE} — ablation: {ABLATION}")
+    # another machine's store: a newer default run of 4of5 only, no ablation, no legacy 3of5 run
+    other = LoggerConfig(tracking_uri=f"sqlite:///{tmp_path / 'other.db'}", artifact_root=str(tmp_path / "other"))
+    log_run(other, cell="4of5", sweep="2026-12-02_07-00-00", sr=0.8)
+
+    replaced = build_topic("ch4_reasoning", other.tracking_uri, out).read_text()
+    assert "— ablation:" not in replaced  # without --update the report holds what this store holds, no more
+
+    build_topic("ch4_reasoning", store.tracking_uri, out)
+    updated = build_topic("ch4_reasoning", other.tracking_uri, out, update=True).read_text()
+    default = section_text(updated, TITLE)
+    assert "Runs: sweep 2026-12-02_07-00-00 (1 run)" in default and "0.80 ± 0.00" in row_of(default)
+    assert "0.70" not in default  # rebuilt from this store only: its legacy 3of5 run is not there
+    assert section_text(updated, f"{TITLE} — ablation: {ABLATION}") == ablation  # kept as it was, with its sweep
+    assert (out / "ch4_reasoning" / "table_4_1_vdeadbeef.png").is_file()
+    assert updated.index(TITLE + "\n") < updated.index(f"{TITLE} — ablation")
+    assert updated.count(f"{TITLE} — ablation") == 1 and "--update" in updated
+    assert "## fig_4_7\n\nNo finished default runs yet" in updated
+
+    # a store without the table's default runs keeps the previous default section too
+    empty = LoggerConfig(tracking_uri=f"sqlite:///{tmp_path / 'empty.db'}", artifact_root=str(tmp_path / "empty"))
+    again = build_topic("ch4_reasoning", empty.tracking_uri, out, update=True).read_text()
+    assert section_text(again, TITLE) == default and section_text(again, f"{TITLE} — ablation: {ABLATION}") == ablation
+    assert "## table_4_1\n\nNo finished default runs" not in again
+
+
 def test_sweep_summary_reads_its_own_sweep_and_variant(store, tmp_path):
     sweep_dir = tmp_path / "multirun" / ABLATION_SWEEP
     config = OmegaConf.create({
