@@ -191,6 +191,26 @@ def test_sweep_summary_reads_its_own_sweep_and_variant(store, tmp_path):
     assert len(fetch_runs(store.tracking_uri, EXPERIMENT, variant=None)) == 3  # summary runs are not jobs
 
 
+def test_a_failing_sweep_summary_makes_the_sweep_exit_non_zero(store, tmp_path, monkeypatch, capsys):
+    """Hydra only warns about an exception in a callback; the summary turns it into exit 1 with the report's command."""
+    import hrc_lab.report.build
+
+    def broken(*args, **kwargs):
+        raise KeyError("a column the section expects")
+
+    monkeypatch.setattr(hrc_lab.report.build, "build_sections", broken)
+    config = OmegaConf.create({
+        "name": EXPERIMENT, "table": "table_4_1", "chapter": "ch4",
+        "logger": {"tracking_uri": store.tracking_uri, "artifact_root": store.artifact_root},
+        "hydra": {"sweep": {"dir": str(tmp_path / "multirun" / DEFAULT_SWEEP)}},
+    })
+    with pytest.raises(SystemExit) as exit_info:
+        SweepSummary().on_multirun_end(config)
+    assert exit_info.value.code == 1
+    err = capsys.readouterr().err
+    assert "a column the section expects" in err and f"hrc-lab-report ch4_reasoning --sweep {DEFAULT_SWEEP}" in err
+
+
 def test_prose_reads_settings_from_params_or_says_not_logged():
     load_sections()
     runs = pd.DataFrame({"method": ["gnn_att", "gnn_att"], "seed": [0, 1], "cell": ["clutter"] * 2,

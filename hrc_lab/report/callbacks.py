@@ -4,6 +4,7 @@ then print the table of the sweep's runs beside the thesis' values when they are
 from __future__ import annotations
 
 import sys
+import traceback
 from pathlib import Path
 
 from hydra.experimental.callback import Callback
@@ -28,6 +29,22 @@ class SweepSummary(Callback):
         ensure_experiment(client, config.name, validated.logger.artifact_root)
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
+        """Print and log the sweep's summary. If that fails, the sweep exits 1 (Hydra would only warn about an
+        exception raised here and exit 0, as if all were well); the jobs' own runs stay as they ended."""
+        try:
+            self._summarise(config)
+        except Exception:
+            from hrc_lab.report.sections import TOPICS
+
+            traceback.print_exc()
+            topic = next((name for name, (_, _, parts) in TOPICS.items() if (config.name, config.table) in parts),
+                         "<topic>")
+            print(f"hrc-lab: the sweep's jobs ended but its summary failed (traceback above); its report: "
+                  f"`hrc-lab-report {topic} --sweep {Path(config.hydra.sweep.dir).name}`", file=sys.stderr)
+            sys.exit(1)
+
+    @staticmethod
+    def _summarise(config: DictConfig) -> None:
         from hrc_lab.report.build import build_sections, write_section
         from hrc_lab.tracking import LoggerConfig, RunTracker
 
