@@ -37,8 +37,8 @@ TINY = ["hydra.mode=RUN", "env=error_correction_one_object_case1", "seed=0", "tr
 def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_path):
     job = run_job("experiment=ch3/fig_3_13", "rl.lam=1", *TINY)
     client, run_id = job.client, job.run.info.run_id
-    for metric in ("success_rate", "collision_rate", "guidance_rate", "env_steps_per_s", "updates_per_s",
-                   "train_grip_rate", "train_moved_rate", "train_final_distance"):
+    for metric in ("success_rate", "collision_rate", "grip_rate", "moved_rate", "guidance_rate", "env_steps_per_s",
+                   "updates_per_s", "train_grip_rate", "train_moved_rate", "train_final_distance"):
         assert [m.step for m in client.get_metric_history(run_id, metric)] == [1, 2], metric
     # 3.3's action: the joints (with wrist 3) and no suction dimension; the cup grips what it touches
     assert job.run.data.params["rl.suction"] == "auto"
@@ -54,6 +54,7 @@ def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_p
 
     report = build_topic("ch3_rl", job.tracking_uri, tmp_path / "report").read_text()
     assert "Fig. 3.13" in report and "ablation" in report and "0.95" in report
+    assert "evaluation episodes that held the part" in report and 0 <= job.metrics["final_grip_rate"] <= 1
     assert list((tmp_path / "report" / "ch3_rl").glob("fig_3_13_v*.png"))
 
 

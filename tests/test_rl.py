@@ -387,7 +387,8 @@ def test_checkpoint_round_trip_resumes_training(env, tmp_path, monkeypatch):
     assert loaded.num_timesteps == 4 * STEPS and loaded.guidance_counts["episodes"] == 4
     assert loaded.replay_buffer.size() == 4 * STEPS
     scores = evaluate(loaded, env, episodes=2)
-    assert set(scores) == {"success_rate", "collision_rate", "final_distance"} and 0 <= scores["success_rate"] <= 1
+    assert set(scores) == {"success_rate", "collision_rate", "final_distance", "grip_rate", "moved_rate"}
+    assert 0 <= scores["success_rate"] <= 1
     assert not any((tmp_path / "tmp").iterdir())  # no SB3-<time> folder per learn call
 
 
@@ -508,3 +509,26 @@ def test_a_held_start_hands_the_agent_the_lifted_part():
         RLConfig(start="hovering")
     with pytest.raises(ValueError, match="error correction only"):
         make_goal_env(package_cell(), RLConfig(**TINY, start="held"), seed=0)
+
+
+class _StillAgent:
+    """Holds every joint still, the cup on (``rl.suction=action``)."""
+
+    def __init__(self, env):
+        self.action = np.zeros(env.action_space.shape)
+        self.action[-1] = 1.0
+
+    def predict(self, obs, deterministic=True):
+        return self.action, None
+
+
+def test_evaluation_says_whether_the_policy_held_and_moved_the_part():
+    """evaluate's grip_rate / moved_rate (the evaluation twins of the training episodes' rates): a policy that
+    keeps still holds the part in every episode that starts with it in the cup and in none that starts with it on
+    the table, and moves it in neither."""
+    held = make_goal_env(correction_cell(), RLConfig(**TINY, start="held"), seed=0, subtask=0)
+    scene = make_goal_env(correction_cell(), RLConfig(**TINY), seed=0, subtask=0)
+    from_cup, from_table = evaluate(_StillAgent(held), held, 2), evaluate(_StillAgent(scene), scene, 2)
+    assert set(from_cup) == {"success_rate", "collision_rate", "final_distance", "grip_rate", "moved_rate"}
+    assert (from_cup["grip_rate"], from_cup["moved_rate"]) == (1.0, 0.0)
+    assert (from_table["grip_rate"], from_table["moved_rate"]) == (0.0, 0.0)

@@ -12,7 +12,8 @@ episodes; ours is ``protocol.episodes_per_epoch`` training episodes of
 ``rl.learning_starts`` steps were collected), then ``protocol.eval_episodes`` evaluation episodes of the
 deterministic policy on held-out scenes (no noise, no guidance). The subtasks of a correction plan are trained in
 sequence, one agent each, ``protocol.epochs`` epochs per subtask; epoch ``k * epochs + e`` of the run is epoch
-``e`` of subtask ``k``. Every epoch logs ``success_rate``, ``collision_rate``, ``final_distance`` (evaluation),
+``e`` of subtask ``k``. Every epoch logs ``success_rate``, ``collision_rate``, ``final_distance``, ``grip_rate``
+and ``moved_rate`` (evaluation; :func:`~hrc_lab.rl.agent.evaluate`),
 ``train_success_rate``, ``train_collision_rate``, ``train_grip_rate``, ``train_moved_rate`` and
 ``train_final_distance`` (that epoch's
 training episodes, exploration noise and guidance included; :class:`~hrc_lab.rl.agent.EpisodeMetrics`),
@@ -73,9 +74,9 @@ def save_checkpoint(ctx: RunContext, agent, subtask: int) -> None:
     ctx.tracker.log_artifact(ctx.output_dir / folder, folder)
 
 
-EPOCH_METRICS = ("success_rate", "collision_rate", "final_distance", "train_success_rate", "train_collision_rate",
-                 "train_grip_rate", "train_moved_rate", "train_final_distance", "guidance_rate", "env_steps_per_s",
-                 "updates_per_s", "subtask")
+EPOCH_METRICS = ("success_rate", "collision_rate", "final_distance", "grip_rate", "moved_rate",
+                 "train_success_rate", "train_collision_rate", "train_grip_rate", "train_moved_rate",
+                 "train_final_distance", "guidance_rate", "env_steps_per_s", "updates_per_s", "subtask")
 
 
 def resume_agent(ctx: RunContext, env, guide, subtask: int):
@@ -164,6 +165,8 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
         "final_success_rate": float(last.success_rate.mean()),
         "final_collision_rate": float(last.collision_rate.mean()),
         "final_distance": float(last.final_distance.mean()),
+        "final_grip_rate": float(last.grip_rate.mean()),
+        "final_moved_rate": float(last.moved_rate.mean()),
         "final_train_success_rate": float(last.train_success_rate.mean()),
         "final_train_grip_rate": float(last.train_grip_rate.mean()),
         "final_train_moved_rate": float(last.train_moved_rate.mean()),

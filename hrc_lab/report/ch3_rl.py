@@ -44,6 +44,8 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
             row = {"experiment": scenario.replace("_", " "), "λ": lam, "seeds": len(done)}
             for metric, label in (("final_success_rate", "final SR"), ("best_success_rate", "best SR"),
                                   ("final_distance", "final |P_obj − P_goal| (evaluation)"),
+                                  ("final_grip_rate", "evaluation episodes that held the part"),
+                                  ("final_moved_rate", "evaluation episodes that moved it > 2 cm"),
                                   ("final_train_success_rate", "final training-episode SR"),
                                   ("final_train_grip_rate", "training episodes that held the part"),
                                   ("final_train_moved_rate", "training episodes that moved it > 2 cm"),

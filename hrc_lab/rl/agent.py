@@ -37,6 +37,7 @@ from hrc_lab.rl.normalization import NormalizedCombinedExtractor
 AGENT_FILE = "agent.zip"
 BUFFER_FILE = "replay_buffer.pkl.gz"
 MAX_BUFFER_BYTES = 256 * 2**20  # by default the replay buffer is saved while its transitions take at most this
+MOVED_M = 0.02  # a goal object farther than this from where the episode started it counts as moved, m
 
 
 def policy_kwargs(cfg: RLConfig) -> dict[str, Any]:
@@ -118,7 +119,7 @@ class EpisodeMetrics(BaseCallback):
     (corrected steps / steps); ``step`` is the episode count."""
 
     def __init__(self, log: Callable[..., None], every: int = 10, prefix: str = "train_",
-                 moved_m: float = 0.02) -> None:
+                 moved_m: float = MOVED_M) -> None:
         super().__init__()
         self.log, self.every, self.prefix, self.moved_m = log, every, prefix, moved_m
         self.episodes: list[dict[str, bool]] = []
@@ -242,25 +243,34 @@ def add_demonstrations(agent: HerDDPG, env: HRCGoalEnv, episodes: int, seed: int
 
 def run_episode(agent: HerDDPG, env: HRCGoalEnv, seed: int | None = None) -> tuple[dict, int | None]:
     """One episode of the deterministic policy from the env's next scene (reseeded with ``seed`` when given):
-    the last step's info and the step at which the goal was first reached (None if never)."""
+    the last step's info, with ``ever_held`` (a part was held at some step) and ``ever_moved`` (a goal object was
+    more than :data:`MOVED_M` from its start at some step) added, and the step at which the goal was first
+    reached (None if never)."""
     obs, _ = env.reset(seed=seed)
     first = None
     truncated = terminated = False
+    held = moved = False
     while not (truncated or terminated):
         action, _ = agent.predict(obs, deterministic=True)
         obs, _, terminated, truncated, info = env.step(action)
+        held |= bool(info["held"])
+        moved |= info["moved_m"] > MOVED_M
         if info["is_success"] and first is None:
             first = env.elapsed_steps
-    return info, first
+    return {**info, "ever_held": held, "ever_moved": moved}, first
 
 
 def evaluate(agent: HerDDPG, env: HRCGoalEnv, episodes: int, seed: int = 0) -> dict[str, float]:
-    """Success rate (Eq. 3.7 / 4.7 at the episode's last step), collision rate and mean final goal distance of
-    the deterministic policy over ``episodes`` scenes (episode k seeded ``seed + k``)."""
+    """Success rate (Eq. 3.7 / 4.7 at the episode's last step), collision rate, mean final goal distance, and how
+    far the policy got with the part (``grip_rate``: share of episodes in which it held a part at some step;
+    ``moved_rate``: in which it moved a goal object more than :data:`MOVED_M`; as the training episodes'
+    :class:`EpisodeMetrics`) of the deterministic policy over ``episodes`` scenes (episode k seeded ``seed + k``)."""
     infos = [run_episode(agent, env, seed=seed + k)[0] for k in range(episodes)]
     return {"success_rate": float(np.mean([i["is_success"] for i in infos])),
             "collision_rate": float(np.mean([i["collided"] for i in infos])),
-            "final_distance": float(np.mean([np.max(i["goal_distances"]) for i in infos]))}
+            "final_distance": float(np.mean([np.max(i["goal_distances"]) for i in infos])),
+            "grip_rate": float(np.mean([i["ever_held"] for i in infos])),
+            "moved_rate": float(np.mean([i["ever_moved"] for i in infos]))}
 
 
 # --- checkpoints ------------------------------------------------------------------------------------------------
