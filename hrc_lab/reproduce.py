@@ -4,7 +4,10 @@
 The plan is derived in one place from the reports' topics (``hrc_lab.report.sections.TOPICS``: which experiments each
 report reads) and their reproduce commands (``hrc_lab.report.build.COMMANDS``, the line each report prints), plus
 the steps no report table reads (the rendered demonstration videos). Each step is a subprocess of the installed
-console scripts beside ``sys.executable``; the run stops at the first failing step, naming it.
+console scripts beside ``sys.executable``; the run stops at the first failing step, naming it. Reports are built with
+``hrc-lab-report --update``: the plan re-runs each experiment as configured, so the sections it rebuilds are the
+default ones, and a committed ablation section (whose runs a fresh store does not hold) stays as it was instead of
+being dropped.
 
 ``--check`` builds the fresh reports into a temporary folder instead of ``reports/`` and compares their CSV tables
 with the committed ones: a ``<x>_mean`` / ``mean`` cell differs when |fresh − committed| exceeds the larger of the
@@ -85,7 +88,7 @@ def build_plan() -> list[Step]:
             command = shlex.split(COMMANDS.get(table, f"hrc-lab experiment={experiment} {JOBLIB}"))
             sweeps.append(_sweep(topic, tuple(command[1:])))
         sweeps += [_sweep(topic, args) for args in EXTRA_SWEEPS.get(topic, [])]
-        reports.append(Step(f"report {topic}", "report", topic, ("hrc-lab-report", topic)))
+        reports.append(Step(f"report {topic}", "report", topic, ("hrc-lab-report", topic, "--update")))
     return sweeps + reports
 
 

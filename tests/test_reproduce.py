@@ -131,6 +131,8 @@ def test_check_run_exits_non_zero_when_a_fresh_report_differs(monkeypatch, tmp_p
 def test_every_chapter_has_steps(selection):
     steps = reproduce.select(PLAN, [selection])
     assert steps and steps[-1].kind == "report"
+    # the committed reports' ablation sections (runs of other stores) survive a reproduction
+    assert all(step.argv[-1] == "--update" for step in steps if step.kind == "report")
     assert all(Path(sys.executable).parent.joinpath(step.argv[0]).name.startswith("hrc-lab") for step in steps)
 
 
