@@ -84,3 +84,24 @@ def test_a_killed_fig_3_13_run_resumes_from_its_agent_checkpoint(run_job):
         old = [(m.step, m.value) for m in client.get_metric_history(parent, metric)]
         assert sorted((m.step, m.value) for m in client.get_metric_history(second.run.info.run_id, metric)) == old
     assert second.metrics["final_success_rate"] == first.metrics["final_success_rate"]
+
+
+ALL_FINAL = ("final_success_rate", "best_success_rate", "final_distance", "final_grip_rate", "final_moved_rate",
+             "final_train_success_rate", "final_train_grip_rate", "final_train_moved_rate", "final_train_distance",
+             "final_collision_rate", "mean_guidance_rate", "mean_env_steps_per_s", "mean_updates_per_s")
+
+
+def test_report_marks_metrics_that_older_runs_did_not_log():
+    """A run from before the evaluation's grip_rate existed shows "–" in that column, and the section says why;
+    runs that logged every metric get no such line."""
+    import pandas as pd
+
+    from hrc_lab.report.ch3_rl import curves_section
+
+    runs = pd.DataFrame({"run_id": ["a"], "scenario": ["one_object_case1"], "seed": [0], "param.rl.lam": ["0.7"],
+                         "final_success_rate": [0.0], "final_grip_rate": [float("nan")]})
+    text = curves_section(runs, "t", "intro", "thesis", "x.png").markdown
+    assert "| –" in text and "did not log" in text
+    logged = curves_section(runs.assign(**{c: [0.5] for c in ALL_FINAL}), "t", "intro", "thesis", "x.png").markdown
+    assert "did not log" not in logged
+

@@ -62,6 +62,8 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
         ax.legend(fontsize=7)
     fig.tight_layout()
     text = [intro, "", thesis_line, "", pd.DataFrame(rows).to_markdown(index=False) if rows else "(no runs)"]
+    if any("–" in row.values() for row in rows):
+        text += ["", "–: a metric these runs did not log (they ran before it was added)."]
     return Section(title, "\n".join(text), pd.DataFrame(csv), {png: fig})
 
 
