@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 import time
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -19,6 +20,8 @@ from hrc_lab.report.cli import main as report_main
 from hrc_lab.report.runs import fetch_runs, setting, variants_of
 from hrc_lab.report.sections import SECTIONS, load_sections
 from hrc_lab.tracking import RunTracker
+
+ROOT = Path(__file__).resolve().parents[1]
 
 EXPERIMENT = "ch4/table_4_1"
 TITLE = "## Table 4.1: reasoning success rates"
@@ -456,3 +459,24 @@ def test_placement_oracle_section_reads_the_second_objects():
     markdown = SECTIONS["table_3_1"](runs).markdown
     assert "two object case2: second object (blue) SR 0.41 ± 0.01 at δr 0.08, c(x) right at 1.00" in markdown
     assert "outside what c(x) and the planner were trained on" in markdown
+
+
+def markdown_tables(text: str) -> list[tuple[int, str, str]]:
+    """(line number, header row, delimiter row) of every pipe table in a markdown text."""
+    lines = text.splitlines()
+    delimiter = re.compile(r"^\|(\s*:?-+:?\s*\|)+$")
+    return [(i, lines[i - 1], line) for i, line in enumerate(lines) if i and delimiter.match(line)
+            and lines[i - 1].startswith("|")]
+
+
+def cells(row: str) -> int:
+    return len(re.split(r"(?<!\\)\|", row.strip())) - 2
+
+
+@pytest.mark.parametrize("report", sorted(p.name for p in (ROOT / "reports").glob("*.md")))
+def test_every_committed_report_table_has_as_many_header_cells_as_columns(report):
+    """A "|" inside a header cell (e.g. |P_obj − P_goal|) splits it, and GitHub then renders no table at all:
+    header and delimiter rows must have the same number of cells (norms are written ‖x‖)."""
+    text = (ROOT / "reports" / report).read_text()
+    for line, header, delimiter in markdown_tables(text):
+        assert cells(header) == cells(delimiter), f"{report}:{line}: {header[:120]}"

@@ -135,7 +135,7 @@ def curve_columns(runs: pd.DataFrame, controller: str) -> list[tuple[int, str]]:
 def fig_3_10(runs: pd.DataFrame) -> Section:
     ref = thesis_results()["ch3"]["text"]
     steps_logged, converged = setting(runs, "protocol.steps"), setting(runs, "protocol.converged_m")
-    final_column = f"|Δ| after {steps_logged} steps (m)" if steps_logged != NOT_LOGGED else "|Δ| at the last step (m)"
+    final_column = f"‖Δ‖ after {steps_logged} steps (m)" if steps_logged != NOT_LOGGED else "‖Δ‖ at the last step (m)"
     reached_column = "reached `protocol.converged_m`" if converged == NOT_LOGGED else f"reached < {converged} m"
     rows, csv = [], []
     fig, ax = plt.subplots(figsize=(6, 3.6))

@@ -43,13 +43,13 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
             done = runs[(runs.scenario == scenario) & (runs.lam == lam)]
             row = {"experiment": scenario.replace("_", " "), "λ": lam, "seeds": len(done)}
             for metric, label in (("final_success_rate", "final SR"), ("best_success_rate", "best SR"),
-                                  ("final_distance", "final |P_obj − P_goal| (evaluation)"),
+                                  ("final_distance", "final ‖P_obj − P_goal‖ (evaluation)"),
                                   ("final_grip_rate", "evaluation episodes that held the part"),
                                   ("final_moved_rate", "evaluation episodes that moved it > 2 cm"),
                                   ("final_train_success_rate", "final training-episode SR"),
                                   ("final_train_grip_rate", "training episodes that held the part"),
                                   ("final_train_moved_rate", "training episodes that moved it > 2 cm"),
-                                  ("final_train_distance", "training episodes' final |P_obj − P_goal|"),
+                                  ("final_train_distance", "training episodes' final ‖P_obj − P_goal‖"),
                                   ("final_collision_rate", "collisions"), ("mean_guidance_rate", "guidance rate"),
                                   ("mean_env_steps_per_s", "env steps/s"), ("mean_updates_per_s", "updates/s")):
                 digits = 0 if metric.startswith("mean_env") or metric.startswith("mean_up") else 2
