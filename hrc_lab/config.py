@@ -7,8 +7,10 @@ every group, naming the full key in the error (``env.n_selected``, ``reasoning.h
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from hydra.core.config_store import ConfigStore
@@ -98,6 +100,12 @@ class TrainerConfig:
 @dataclass
 class PathsConfig:
     runs_dir: str  # everything a run writes (MLflow store, Hydra outputs, caches, data sets); conf/paths
+
+
+def runs_dir() -> Path:
+    """``paths.runs_dir`` for the console scripts that run outside a Hydra job (``hrc-lab-server``,
+    ``hrc-lab-reproduce``): ``$HRC_LAB_RUNS``, else ``runs``, the rule of ``conf/paths/default.yaml``."""
+    return Path(os.environ.get("HRC_LAB_RUNS", "runs"))
 
 
 def group_registries() -> dict[str, Registry]:

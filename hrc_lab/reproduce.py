@@ -7,7 +7,8 @@ the steps no report table reads (the rendered demonstration videos). Each step i
 console scripts beside ``sys.executable``; the run stops at the first failing step, naming it. Reports are built with
 ``hrc-lab-report --update``: the plan re-runs each experiment as configured, so the sections it rebuilds are the
 default ones, and a committed ablation section (whose runs a fresh store does not hold) stays as it was instead of
-being dropped.
+being dropped. Finished sweeps are journaled (``<runs>/reproduce.jsonl``); ``--resume`` skips those of the same
+command, store and machine and counts their recorded wall times in the total.
 
 ``--check`` builds the fresh reports into a temporary folder instead of ``reports/`` and compares their CSV tables
 with the committed ones: a ``<x>_mean`` / ``mean`` cell differs when |fresh − committed| exceeds the larger of the
@@ -16,18 +17,24 @@ two ``std`` cells beside it (its seed spread); a cell without a spread must matc
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import os
 import re
 import shlex
+import signal
 import subprocess
 import sys
 import tempfile
 import time
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 
 import pandas as pd
 
+from hrc_lab.config import runs_dir
+from hrc_lab.processes import machine_identity
 from hrc_lab.report.build import COMMANDS
 from hrc_lab.report.sections import TOPICS
 
@@ -125,11 +132,8 @@ def _duration(seconds: float) -> str:
     return f"{hours}:{minutes:02d}:{secs:02d}"
 
 
-def print_summary(rows: list[tuple[str, float | None, str]]) -> None:
+def print_summary(rows: list[tuple[str, float | None, str]], machine: dict[str, str]) -> None:
     """Each step's wall time and status, the total, and the machine they were measured on."""
-    from hrc_lab.tracking import machine_identity
-
-    machine = machine_identity()
     width = max([len("step")] + [len(name) for name, _, _ in rows])
     print(f"\nmachine: {machine['cpu']}, {machine['cpu_cores']} cores, torch kernels {machine['cpu_capability']}")
     print(f"{'step':<{width}}  {'wall':>9}  status")
@@ -139,23 +143,96 @@ def print_summary(rows: list[tuple[str, float | None, str]]) -> None:
     print(f"{'total':<{width}}  {_duration(total):>9}")
 
 
-def run_steps(steps: list[Step], tracking_uri: str | None, out: Path | None) -> int:
-    """Run ``steps`` in order with their output streamed; stop at the first failure. Returns the exit code."""
+# ---- the journal: finished sweeps, so that --resume continues a reproduction that was stopped ----
+
+JOURNAL = "reproduce.jsonl"  # under the runs folder (hrc_lab.config.runs_dir)
+
+
+def journal_path() -> Path:
+    return runs_dir() / JOURNAL
+
+
+def _journal_key(command: str, tracking_uri: str | None, machine: dict[str, str]) -> tuple[str, str, str, str]:
+    """A sweep counts as done for the same command, store and machine (a time measured elsewhere is not this
+    machine's)."""
+    return command, tracking_uri or "", machine["cpu"], machine["cpu_cores"]
+
+
+def read_journal(path: Path) -> dict[tuple[str, str, str, str], dict]:
+    """The newest entry per key of the journal at ``path`` (empty when there is none)."""
+    entries: dict[tuple[str, str, str, str], dict] = {}
+    if path.is_file():
+        for line in path.read_text().splitlines():
+            entry = json.loads(line)
+            entries[_journal_key(entry["command"], entry["tracking_uri"], entry)] = entry
+    return entries
+
+
+def record(path: Path, command: str, tracking_uri: str | None, seconds: float, machine: dict[str, str]) -> None:
+    """Append a finished sweep to the journal."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    entry = {"command": command, "tracking_uri": tracking_uri or "", "seconds": round(seconds, 1),
+             "finished": datetime.now(UTC).isoformat(timespec="seconds"),
+             "cpu": machine["cpu"], "cpu_cores": machine["cpu_cores"]}
+    with path.open("a") as file:
+        file.write(json.dumps(entry) + "\n")
+
+
+def _run(argv: list[str]) -> int:
+    """Run one step in its own process group; SIGINT / SIGTERM to this process reach the whole group (the sweep and
+    its launcher's workers), and once the step has ended this process exits with the signal's code."""
+    child = subprocess.Popen(argv, start_new_session=True)
+    received: list[int] = []
+
+    def forward(signum, frame):
+        received.append(signum)
+        try:
+            os.killpg(child.pid, signum)
+        except ProcessLookupError:
+            pass
+
+    previous = {sig: signal.signal(sig, forward) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        returncode = child.wait()
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if received:
+        sys.exit(128 + received[0])
+    return returncode
+
+
+def run_steps(steps: list[Step], tracking_uri: str | None, out: Path | None, resume: bool = False,
+              journal: Path | None = None) -> int:
+    """Run ``steps`` in order with their output streamed; stop at the first failure. Every finished sweep is
+    appended to the journal; with ``resume`` a sweep the journal holds (same command, store and machine) is not run
+    again and its recorded wall time counts in the total. Returns the exit code."""
+    journal = journal or journal_path()
+    machine = machine_identity()
+    done = read_journal(journal) if resume else {}
     rows: list[tuple[str, float | None, str]] = []
     code = 0
     for index, step in enumerate(steps):
         argv = command_of(step, tracking_uri, out)
-        print(f"\n==> [{index + 1}/{len(steps)}] {step.name}: {_display(argv)}", flush=True)
+        shown = _display(argv)
+        earlier = done.get(_journal_key(shown, tracking_uri, machine)) if step.kind == "sweep" else None
+        if earlier:
+            print(f"\n==> [{index + 1}/{len(steps)}] {step.name}: done {earlier['finished']} (--resume)", flush=True)
+            rows.append((step.name, earlier["seconds"], f"ok, {earlier['finished']}"))
+            continue
+        print(f"\n==> [{index + 1}/{len(steps)}] {step.name}: {shown}", flush=True)
         start = time.monotonic()
-        returncode = subprocess.run(argv, check=False).returncode
+        returncode = _run(argv)
         seconds = time.monotonic() - start
         if returncode != 0:
             rows.append((step.name, seconds, f"FAILED (exit {returncode})"))
             rows += [(later.name, None, "not run") for later in steps[index + 1 :]]
             code = returncode if returncode > 0 else 1
             break
+        if step.kind == "sweep":
+            record(journal, shown, tracking_uri, seconds, machine)
         rows.append((step.name, seconds, "ok"))
-    print_summary(rows)
+    print_summary(rows, machine)
     if code:
         failed = next(name for name, _, status in rows if status.startswith("FAILED"))
         print(f"hrc-lab-reproduce: step '{failed}' failed (exit {code}); later steps not run", file=sys.stderr)
@@ -309,6 +386,12 @@ def main(argv: list[str] | None = None) -> int:
         help="skip the sweeps: build the reports from the runs already in the store",
     )
     parser.add_argument(
+        "--resume",
+        action="store_true",
+        help=f"skip the sweeps that finished in an earlier reproduction with the same command, store and machine "
+        f"(the journal <runs>/{JOURNAL}); their recorded wall times count in the total",
+    )
+    parser.add_argument(
         "--committed", type=Path, default=Path("reports"), help="folder of the committed reports (default: reports)"
     )
     parser.add_argument(
@@ -330,7 +413,7 @@ def main(argv: list[str] | None = None) -> int:
         for index, step in enumerate(steps):
             print(f"[{index + 1}/{len(steps)}] {step.name}: {_display(command_of(step, args.tracking_uri, out))}")
         return 0
-    code = run_steps(steps, args.tracking_uri, out)
+    code = run_steps(steps, args.tracking_uri, out, resume=args.resume)
     if code or not args.check:
         return code
     return check(args.committed, out, sorted({step.topic for step in steps if step.kind == "report"}))

@@ -26,6 +26,7 @@ import urllib.error
 import urllib.request
 from pathlib import Path
 
+from hrc_lab.config import runs_dir
 from hrc_lab.processes import process_start
 
 PG_BIN_DIRS = [Path("/usr/lib/postgresql/15/bin")]
@@ -332,7 +333,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("stop", "status"):
         commands.add_parser(name)
     for sub in commands.choices.values():
-        sub.add_argument("--dir", type=Path, default=Path(os.environ.get("HRC_LAB_RUNS", "runs")) / "server",
+        sub.add_argument("--dir", type=Path, default=runs_dir() / "server",
                          help="server folder: database cluster, artifacts, logs, server.json (default runs/server)")
     args = parser.parse_args(argv)
     try:

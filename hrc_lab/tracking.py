@@ -6,7 +6,6 @@ never share state; the tracking URI is one config key (``logger.tracking_uri``),
 from __future__ import annotations
 
 import os
-import platform
 import re
 import socket
 import tempfile
@@ -21,7 +20,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from hrc_lab.config import LoggerConfig
 from hrc_lab.interrupts import RunInterrupted
-from hrc_lab.processes import process_start
+from hrc_lab.processes import machine_identity, process_start
 
 
 def resolve_tracking_uri(uri: str) -> str:
@@ -73,28 +72,6 @@ def process_identity(pid: int | None = None) -> dict[str, str]:
     clock ticks), so a later look can tell a live job from a dead one whose PID was reused."""
     pid = os.getpid() if pid is None else pid
     return {"host": socket.gethostname(), "pid": str(pid), "process_start": process_start(pid) or "unknown"}
-
-
-def machine_identity() -> dict[str, str]:
-    """Tags that say what a job's wall times and float rounding depend on: the CPU (``cpu``: its model name and
-    family/model/stepping as /proc/cpuinfo gives them), the cores this process may use, and the instruction set torch
-    dispatches its CPU kernels to (``cpu_capability``, e.g. AVX2 or AVX512): two machines of the same size can
-    differ several times in speed, and a job's numbers within their seed spread (README, "Wall times")."""
-    import torch
-
-    fields: dict[str, str] = {}
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            key, _, value = line.partition(":")
-            fields.setdefault(key.strip(), value.strip())
-    except OSError:  # not Linux
-        pass
-    name = fields.get("model name") or platform.processor() or platform.machine()
-    if "cpu family" in fields:
-        model, stepping = fields.get("model", "?"), fields.get("stepping", "?")
-        name += f" (family {fields['cpu family']} model {model} stepping {stepping})"
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return {"cpu": name, "cpu_cores": str(cores), "cpu_capability": torch.backends.cpu.get_cpu_capability()}
 
 
 class RunTracker:

@@ -16,6 +16,13 @@ from hrc_lab.reproduce import LEFT_OUT, PLAN, Step, compare_reports, main
 ROOT = Path(__file__).resolve().parents[1]
 
 
+@pytest.fixture(autouse=True)
+def runs_folder(tmp_path, monkeypatch):
+    """The journal of finished sweeps goes to a temporary runs folder, not the checkout's."""
+    monkeypatch.setenv("HRC_LAB_RUNS", str(tmp_path / "runs"))
+    return tmp_path / "runs"
+
+
 def test_plan_covers_every_table_and_figure_experiment():
     experiments = {
         str(p.relative_to(ROOT / "conf/experiment").with_suffix("")) for p in ROOT.glob("conf/experiment/*/*.yaml")
@@ -146,3 +153,58 @@ def test_check_notes_committed_ablations_the_plan_does_not_rerun(tmp_path):
     assert differences == ["ch3_motion/table_3_1_extra.csv: committed, but the fresh report has no such table"]
     assert notes == ["ch3_motion/table_3_1_v005bbb65.csv: an ablation, which the plan does not re-run; its section "
                      "names its command"]
+
+
+def test_resume_skips_the_sweeps_an_earlier_reproduction_finished_and_counts_their_time(monkeypatch, capsys,
+                                                                                         runs_folder, tmp_path):
+    ran = tmp_path / "ran.txt"
+    append = "import sys; open(sys.argv[1], 'a').write(sys.argv[2] + chr(10))"
+    fake = [
+        Step("sweep one", "sweep", "ch6_grasp", ("python", "-c", append, str(ran), "one")),
+        Step("sweep two", "sweep", "ch6_grasp", ("python", "-c", append + "; raise SystemExit(int(sys.argv[3]))",
+                                                 str(ran), "two", "1")),
+        Step("report", "report", "ch6_grasp", ("python", "-c", append, str(ran), "report")),
+    ]
+    monkeypatch.setattr(reproduce, "PLAN", fake)
+    assert main(["ch6"]) == 1  # "two" fails: only "one" is journaled
+    assert ran.read_text().split() == ["one", "two"]
+    fake[1] = Step("sweep two", "sweep", "ch6_grasp", fake[1].argv[:-1] + ("0",))
+    capsys.readouterr()
+    assert main(["ch6", "--resume"]) == 0
+    assert ran.read_text().split() == ["one", "two", "two", "report"]  # "one" was not run again
+    out = capsys.readouterr().out
+    assert "sweep one: done " in out and "(--resume)" in out
+    journal = (runs_folder / "reproduce.jsonl").read_text().splitlines()
+    assert len(journal) == 2 and all('"cpu": ' in line for line in journal)
+    assert main(["ch6"]) == 0  # without --resume every sweep runs
+    assert ran.read_text().split()[-3:] == ["one", "two", "report"]
+
+
+def test_a_signal_to_the_reproduction_stops_the_whole_step_with_its_workers(tmp_path):
+    """SIGTERM (a cluster's time limit, `kill`) reaches the sweep's process group, launcher workers included, and the
+    reproduction exits with the signal's code instead of leaving them running."""
+    import os
+    import signal
+    import subprocess
+    import time
+
+    pid_file = tmp_path / "worker.pid"
+    worker = ("import subprocess, sys, time; p = subprocess.Popen([sys.executable, '-c', 'import time; "
+              f"time.sleep(120)']); open({str(pid_file)!r}, 'w').write(str(p.pid)); time.sleep(120)")
+    runner = ("import sys; from hrc_lab.reproduce import _run; "
+              f"sys.exit(_run([sys.executable, '-c', {worker!r}]))")
+    reproduction = subprocess.Popen([sys.executable, "-c", runner])
+    deadline = time.monotonic() + 60
+    while not (pid_file.exists() and pid_file.read_text()) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    grandchild = int(pid_file.read_text())
+    reproduction.send_signal(signal.SIGTERM)
+    assert reproduction.wait(timeout=30) == 128 + signal.SIGTERM
+    for _ in range(100):
+        try:
+            os.kill(grandchild, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.1)
+    else:
+        pytest.fail("the step's worker outlived the reproduction")
