@@ -1,0 +1,91 @@
+"""Where do the final policies of a Ch.3 RL sweep (``ch3/fig_3_13``, ``ch3/fig_3_12``) miss Eq. 3.6's goal? Loads
+every finished run's last agent per subtask (``agents/subtask<k>/``), replays the run's last evaluation (its
+held-out scenes, the deterministic policy) and splits |P_obj - P_goal| into the position error and the yaw error;
+also how many episodes held the part, moved it more than 2 cm, or collided. Prints one row per (scenario, lambda).
+
+    .venv/bin/python scripts/rl_final_policies.py 2026-12-02_06-55-00 [--tracking-uri URI] [--episodes 10]
+"""
+
+import argparse
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch
+from mlflow.tracking import MlflowClient
+from omegaconf import OmegaConf
+
+from hrc_lab.config import register_schemas, validate_config
+from hrc_lab.rl.agent import MOVED_M, HerDDPG
+from hrc_lab.rl.goal_env import make_goal_env
+
+
+def replay(agent: HerDDPG, env, seed: int) -> dict[str, float]:
+    """One evaluation episode; the last step's position and yaw errors (the farthest goal object)."""
+    obs, _ = env.reset(seed=seed)
+    held = moved = False
+    while True:
+        obs, _, terminated, truncated, info = env.step(agent.predict(obs, deterministic=True)[0])
+        held |= bool(info["held"])
+        moved |= info["moved_m"] > MOVED_M
+        if terminated or truncated:
+            break
+    error = (obs["achieved_goal"] - obs["desired_goal"]).reshape(-1, env.dims_per_object)
+    return {"position_m": float(np.linalg.norm(error[:, :3], axis=1).max()),
+            "yaw_rad": float(np.abs(error[:, 3]).max()) if env.dims_per_object == 4 else float("nan"),
+            "held": held, "moved": moved, "collided": bool(info["collided"]), "delta_r": env.delta_r}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("sweep", help="the sweep's folder name (MLflow tag `sweep`)")
+    parser.add_argument("--tracking-uri", default="sqlite:///runs/mlflow.db")
+    parser.add_argument("--episodes", type=int, default=10, help="evaluation episodes per agent")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
+    register_schemas()
+    client = MlflowClient(args.tracking_uri)
+    experiments = [e.experiment_id for e in client.search_experiments()]
+    runs = client.search_runs(experiments, f"tags.sweep = '{args.sweep}' and attributes.status = 'FINISHED'")
+    rows = []
+    for run in runs:
+        if "agents" not in {a.path for a in client.list_artifacts(run.info.run_id)}:
+            continue  # the sweep's summary run
+        with tempfile.TemporaryDirectory() as tmp:
+            cfg = validate_config(OmegaConf.load(client.download_artifacts(run.info.run_id, "config/resolved.yaml",
+                                                                           tmp)))
+            agents = Path(client.download_artifacts(run.info.run_id, "agents", tmp))
+            last_epoch = cfg.protocol.epochs
+            for folder in sorted(agents.glob("subtask*")):
+                subtask = int(folder.name.removeprefix("subtask"))
+                env = make_goal_env(cfg.env, cfg.rl, seed=10_000 + cfg.raw.seed, subtask=subtask)  # as the run's
+                agent = HerDDPG.load(folder / "agent.zip", env=env, device="cpu")
+                for k in range(args.episodes):
+                    rows.append({"scenario": run.data.tags.get("cell", cfg.raw.env.name),
+                                 "lam": float(cfg.rl.lam), "seed": cfg.raw.seed, "subtask": subtask,
+                                 **replay(agent, env, seed=1000 * last_epoch + k)})
+                env.close()
+        print(f"{run.data.tags.get('mlflow.runName', run.info.run_id)}: {len(rows)} episodes", flush=True)
+    if not rows:
+        raise SystemExit(f"no finished run with saved agents in sweep {args.sweep} at {args.tracking_uri}")
+    frame = pd.DataFrame(rows)
+    delta_r = frame.delta_r.iloc[0]
+    groups = frame.groupby(["scenario", "lam"])
+    table = pd.DataFrame({
+        "episodes": groups.size(),
+        "median position error (m)": groups.position_m.median(),
+        "median |yaw error| (rad)": groups.yaw_rad.median(),
+        f"position within {delta_r:g}": groups.position_m.apply(lambda s: (s <= delta_r).mean()),
+        f"yaw within {delta_r:g}": groups.yaw_rad.apply(lambda s: (s <= delta_r).mean()),
+        "held the part": groups.held.mean(),
+        f"moved it > {MOVED_M * 100:g} cm": groups.moved.mean(),
+        "collided": groups.collided.mean(),
+    })
+    print(table.round(3).reset_index().to_markdown(index=False))
+
+
+if __name__ == "__main__":
+    main()
