@@ -5,10 +5,14 @@ file composes and validates in tests/test_config.py.)"""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from hrc_lab.config import validate_config
 from hrc_lab.registry import ConfigError
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.parametrize("experiment,overrides,key", [
@@ -34,7 +38,7 @@ TINY = ["hydra.mode=RUN", "env=error_correction_one_object_case1", "seed=0", "tr
         "rl.buffer_size=200"]
 
 
-def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_path):
+def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_path, monkeypatch, capsys):
     job = run_job("experiment=ch3/fig_3_13", "rl.lam=1", *TINY)
     client, run_id = job.client, job.run.info.run_id
     for metric in ("success_rate", "collision_rate", "grip_rate", "moved_rate", "guidance_rate", "env_steps_per_s",
@@ -55,6 +59,15 @@ def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_p
     report = build_topic("ch3_rl", job.tracking_uri, tmp_path / "report").read_text()
     assert "Fig. 3.13" in report and "ablation" in report and "0.95" in report
     assert "evaluation episodes that held the part" in report and 0 <= job.metrics["final_grip_rate"] <= 1
+    # scripts/rl_final_policies.py replays the run's last evaluation from its saved agent
+    import runpy
+    import sys
+
+    argv = ["rl_final_policies.py", job.run.data.tags["sweep"], "--tracking-uri", job.tracking_uri, "--episodes", "1"]
+    monkeypatch.setattr(sys, "argv", argv)
+    runpy.run_path(str(ROOT / "scripts" / "rl_final_policies.py"), run_name="__main__")
+    table = capsys.readouterr().out
+    assert "| one_object_case1 |     1 |          1 |" in table and "yaw within 0.01" in table
     assert list((tmp_path / "report" / "ch3_rl").glob("fig_3_13_v*.png"))
 
 
