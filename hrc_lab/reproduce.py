@@ -202,13 +202,11 @@ def _run(argv: list[str]) -> int:
     return returncode
 
 
-def run_steps(steps: list[Step], tracking_uri: str | None, out: Path | None, resume: bool = False,
-              journal: Path | None = None) -> int:
+def run_steps(steps: list[Step], tracking_uri: str | None, out: Path | None, resume: bool = False) -> int:
     """Run ``steps`` in order with their output streamed; stop at the first failure. Every finished sweep is
     appended to the journal; with ``resume`` a sweep the journal holds (same command, store and machine) is not run
     again and its recorded wall time counts in the total. Returns the exit code."""
-    journal = journal or journal_path()
-    machine = machine_identity()
+    journal, machine = journal_path(), machine_identity()
     done = read_journal(journal) if resume else {}
     rows: list[tuple[str, float | None, str]] = []
     code = 0
@@ -218,7 +216,7 @@ def run_steps(steps: list[Step], tracking_uri: str | None, out: Path | None, res
         earlier = done.get(_journal_key(shown, tracking_uri, machine)) if step.kind == "sweep" else None
         if earlier:
             print(f"\n==> [{index + 1}/{len(steps)}] {step.name}: done {earlier['finished']} (--resume)", flush=True)
-            rows.append((step.name, earlier["seconds"], f"ok, {earlier['finished']}"))
+            rows.append((step.name, earlier["seconds"], f"ok (earlier run, finished {earlier['finished']})"))
             continue
         print(f"\n==> [{index + 1}/{len(steps)}] {step.name}: {shown}", flush=True)
         start = time.monotonic()
