@@ -18,24 +18,18 @@ from mlflow.tracking import MlflowClient
 from omegaconf import OmegaConf
 
 from hrc_lab.config import register_schemas, validate_config
-from hrc_lab.rl.agent import MOVED_M, HerDDPG
+from hrc_lab.rl.agent import MOVED_M, HerDDPG, run_episode
 from hrc_lab.rl.goal_env import make_goal_env
 
 
 def replay(agent: HerDDPG, env, seed: int) -> dict[str, float]:
     """One evaluation episode; the last step's position and yaw errors (the farthest goal object)."""
-    obs, _ = env.reset(seed=seed)
-    held = moved = False
-    while True:
-        obs, _, terminated, truncated, info = env.step(agent.predict(obs, deterministic=True)[0])
-        held |= bool(info["held"])
-        moved |= info["moved_m"] > MOVED_M
-        if terminated or truncated:
-            break
-    error = (obs["achieved_goal"] - obs["desired_goal"]).reshape(-1, env.dims_per_object)
+    info, _ = run_episode(agent, env, seed=seed)
+    error = (info["achieved_goal"] - info["desired_goal"]).reshape(-1, env.dims_per_object)
     return {"position_m": float(np.linalg.norm(error[:, :3], axis=1).max()),
             "yaw_rad": float(np.abs(error[:, 3]).max()) if env.dims_per_object == 4 else float("nan"),
-            "held": held, "moved": moved, "collided": bool(info["collided"]), "delta_r": env.delta_r}
+            "held": info["ever_held"], "moved": info["ever_moved"], "collided": bool(info["collided"]),
+            "delta_r": env.delta_r}
 
 
 def main() -> None:

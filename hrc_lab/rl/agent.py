@@ -243,9 +243,9 @@ def add_demonstrations(agent: HerDDPG, env: HRCGoalEnv, episodes: int, seed: int
 
 def run_episode(agent: HerDDPG, env: HRCGoalEnv, seed: int | None = None) -> tuple[dict, int | None]:
     """One episode of the deterministic policy from the env's next scene (reseeded with ``seed`` when given):
-    the last step's info, with ``ever_held`` (a part was held at some step) and ``ever_moved`` (a goal object was
-    more than :data:`MOVED_M` from its start at some step) added, and the step at which the goal was first
-    reached (None if never)."""
+    the last step's info, with ``ever_held`` (a part was held at some step), ``ever_moved`` (a goal object was
+    more than :data:`MOVED_M` from its start at some step) and the last observation's ``achieved_goal`` and
+    ``desired_goal`` added, and the step at which the goal was first reached (None if never)."""
     obs, _ = env.reset(seed=seed)
     first = None
     truncated = terminated = False
@@ -257,7 +257,8 @@ def run_episode(agent: HerDDPG, env: HRCGoalEnv, seed: int | None = None) -> tup
         moved |= info["moved_m"] > MOVED_M
         if info["is_success"] and first is None:
             first = env.elapsed_steps
-    return {**info, "ever_held": held, "ever_moved": moved}, first
+    goals = {key: obs[key] for key in ("achieved_goal", "desired_goal")}
+    return {**info, "ever_held": held, "ever_moved": moved, **goals}, first
 
 
 def evaluate(agent: HerDDPG, env: HRCGoalEnv, episodes: int, seed: int = 0) -> dict[str, float]:
