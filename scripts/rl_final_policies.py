@@ -71,7 +71,7 @@ def main() -> None:
     table = pd.DataFrame({
         "episodes": groups.size(),
         "median position error (m)": groups.position_m.median(),
-        "median |yaw error| (rad)": groups.yaw_rad.median(),
+        "median absolute yaw error (rad)": groups.yaw_rad.median(),
         f"position within {delta_r:g}": groups.position_m.apply(lambda s: (s <= delta_r).mean()),
         f"yaw within {delta_r:g}": groups.yaw_rad.apply(lambda s: (s <= delta_r).mean()),
         "held the part": groups.held.mean(),
