@@ -18,8 +18,8 @@ from mlflow.tracking import MlflowClient
 from omegaconf import OmegaConf
 
 from hrc_lab.config import register_schemas, validate_config
+from hrc_lab.experiments.ch3_rl import evaluation_env, evaluation_seed
 from hrc_lab.rl.agent import MOVED_M, HerDDPG, run_episode
-from hrc_lab.rl.goal_env import make_goal_env
 
 
 def replay(agent: HerDDPG, env, seed: int) -> dict[str, float]:
@@ -52,15 +52,15 @@ def main() -> None:
             cfg = validate_config(OmegaConf.load(client.download_artifacts(run.info.run_id, "config/resolved.yaml",
                                                                            tmp)))
             agents = Path(client.download_artifacts(run.info.run_id, "agents", tmp))
-            last_epoch = cfg.protocol.epochs
+            seed = int(run.data.params["seed"])
             for folder in sorted(agents.glob("subtask*")):
                 subtask = int(folder.name.removeprefix("subtask"))
-                env = make_goal_env(cfg.env, cfg.rl, seed=10_000 + cfg.raw.seed, subtask=subtask)  # as the run's
+                env = evaluation_env(cfg.env, cfg.rl, seed, subtask)
                 agent = HerDDPG.load(folder / "agent.zip", env=env, device="cpu")
                 for k in range(args.episodes):
-                    rows.append({"scenario": run.data.tags.get("cell", cfg.raw.env.name),
-                                 "lam": float(cfg.rl.lam), "seed": cfg.raw.seed, "subtask": subtask,
-                                 **replay(agent, env, seed=1000 * last_epoch + k)})
+                    rows.append({"scenario": run.data.tags["cell"], "lam": float(cfg.rl.lam), "seed": seed,
+                                 "subtask": subtask,
+                                 **replay(agent, env, seed=evaluation_seed(cfg.protocol.epochs) + k)})
                 env.close()
         print(f"{run.data.tags.get('mlflow.runName', run.info.run_id)}: {len(rows)} episodes", flush=True)
     if not rows:

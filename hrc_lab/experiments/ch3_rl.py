@@ -34,6 +34,18 @@ from hrc_lab.experiments.context import RunContext
 AGENTS_DIR = "agents"
 
 
+def evaluation_env(env_cfg, rl_cfg, seed: int, subtask: int):
+    """The held-out scenes a run's agent of ``subtask`` is evaluated on (its own seed stream, apart from training)."""
+    from hrc_lab.rl.goal_env import make_goal_env
+
+    return make_goal_env(env_cfg, rl_cfg, seed=10_000 + seed, subtask=subtask)
+
+
+def evaluation_seed(epoch: int) -> int:
+    """The first scene seed of epoch ``epoch``'s evaluation (episode k: this + k)."""
+    return 1000 * epoch
+
+
 def guided(ctx: RunContext) -> bool:
     """Whether the run's agent is ever guided (``rl=ddpg_her_guided`` with lambda > 0)."""
     return ctx.cfg.rl.name == "ddpg_her_guided" and ctx.cfg.rl.lam > 0
@@ -120,7 +132,7 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
     probe.close()
     for subtask in range(n_subtasks):
         env = make_goal_env(ctx.cfg.env, rl, seed=ctx.seed, subtask=subtask)
-        test = make_goal_env(ctx.cfg.env, rl, seed=10_000 + ctx.seed, subtask=subtask)
+        test = evaluation_env(ctx.cfg.env, rl, ctx.seed, subtask)
         agent = resume_agent(ctx, env, guide, subtask) or build_agent(ctx, env, guide)
         done = agent.num_timesteps // env.horizon // protocol.episodes_per_epoch  # epochs a resumed agent had
         if done:
@@ -135,7 +147,7 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
             corrected = agent.guidance_counts["corrected"] if isinstance(agent, GuidedDDPG) else 0
             collect_s, train_s = timer.collect_s, timer.train_s
             learn_episodes(agent, epoch * protocol.episodes_per_epoch, callback)
-            scores = evaluate(agent, test, protocol.eval_episodes, seed=1000 * epoch)
+            scores = evaluate(agent, test, protocol.eval_episodes, seed=evaluation_seed(epoch))
             corrected = agent.guidance_counts["corrected"] - corrected if isinstance(agent, GuidedDDPG) else 0
             metrics = {
                 **scores,
