@@ -178,38 +178,74 @@ def record(path: Path, command: str, tracking_uri: str | None, seconds: float, m
         file.write(json.dumps(entry) + "\n")
 
 
+# After a stop signal has been forwarded: how long the step may take to mark its MLflow runs KILLED and exit before
+# its process group is killed (SIGKILL).
+STOP_GRACE_S = 30.0
+
+
+class Stopped(Exception):
+    """The reproduction was stopped by a signal (Ctrl-C, ``kill``, a cluster's time limit) during a step."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _signal_group(pgid: int, signum: int) -> bool:
+    """Send ``signum`` to process group ``pgid``; False when no process of the group is left."""
+    try:
+        os.killpg(pgid, signum)
+    except ProcessLookupError:
+        return False
+    return True
+
+
 def _run(argv: list[str]) -> int:
-    """Run one step in its own process group; SIGINT / SIGTERM to this process reach the whole group (the sweep and
-    its launcher's workers), and once the step has ended this process exits with the signal's code."""
+    """Run one step in its own process group and return its exit code. SIGINT / SIGTERM to this process reach the
+    whole group (the sweep and its launcher's workers, which mark their MLflow runs KILLED); once the group has
+    exited, or ``STOP_GRACE_S`` after the signal, whatever is left of it is killed (idle joblib workers would
+    outlive their sweep) and :class:`Stopped` is raised."""
     child = subprocess.Popen(argv, start_new_session=True)
     received: list[int] = []
 
     def forward(signum, frame):
         received.append(signum)
-        try:
-            os.killpg(child.pid, signum)
-        except ProcessLookupError:
-            pass
+        _signal_group(child.pid, signum)
 
     previous = {sig: signal.signal(sig, forward) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        returncode = child.wait()
+        kill_at = math.inf
+        while True:
+            returncode = child.poll()
+            if not received:
+                if returncode is not None:
+                    break
+            elif kill_at == math.inf:
+                kill_at = time.monotonic() + STOP_GRACE_S
+            elif returncode is not None and not _signal_group(child.pid, 0):
+                break
+            elif time.monotonic() > kill_at:
+                _signal_group(child.pid, signal.SIGKILL)
+                if returncode is not None:
+                    break
+            time.sleep(0.2)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     if received:
-        sys.exit(128 + received[0])
+        raise Stopped(received[0])
     return returncode
 
 
 def run_steps(steps: list[Step], tracking_uri: str | None, out: Path | None, resume: bool = False) -> int:
-    """Run ``steps`` in order with their output streamed; stop at the first failure. Every finished sweep is
-    appended to the journal; with ``resume`` a sweep the journal holds (same command, store and machine) is not run
-    again and its recorded wall time counts in the total. Returns the exit code."""
+    """Run ``steps`` in order with their output streamed; stop at the first failure or at a stop signal, and print
+    the summary either way. Every finished sweep is appended to the journal; with ``resume`` a sweep the journal
+    holds (same command, store and machine) is not run again and its recorded wall time counts in the total.
+    Returns the exit code (128 + the signal's number when stopped by one)."""
     journal, machine = journal_path(), machine_identity()
     done = read_journal(journal) if resume else {}
     rows: list[tuple[str, float | None, str]] = []
-    code = 0
+    code, problem = 0, ""
     for index, step in enumerate(steps):
         argv = command_of(step, tracking_uri, out)
         shown = _display(argv)
@@ -220,20 +256,26 @@ def run_steps(steps: list[Step], tracking_uri: str | None, out: Path | None, res
             continue
         print(f"\n==> [{index + 1}/{len(steps)}] {step.name}: {shown}", flush=True)
         start = time.monotonic()
-        returncode = _run(argv)
-        seconds = time.monotonic() - start
-        if returncode != 0:
+        try:
+            returncode = _run(argv)
+        except Stopped as stop:
+            code, problem = 128 + stop.signum, f"stopped by {stop} during step '{step.name}'"
+            rows.append((step.name, time.monotonic() - start, f"STOPPED ({stop})"))
+        else:
+            seconds = time.monotonic() - start
+            if returncode == 0:
+                if step.kind == "sweep":
+                    record(journal, shown, tracking_uri, seconds, machine)
+                rows.append((step.name, seconds, "ok"))
+                continue
+            code, problem = (returncode if returncode > 0 else 1), f"step '{step.name}' failed (exit {returncode})"
             rows.append((step.name, seconds, f"FAILED (exit {returncode})"))
-            rows += [(later.name, None, "not run") for later in steps[index + 1 :]]
-            code = returncode if returncode > 0 else 1
-            break
-        if step.kind == "sweep":
-            record(journal, shown, tracking_uri, seconds, machine)
-        rows.append((step.name, seconds, "ok"))
+        rows += [(later.name, None, "not run") for later in steps[index + 1 :]]
+        break
     print_summary(rows, machine)
     if code:
-        failed = next(name for name, _, status in rows if status.startswith("FAILED"))
-        print(f"hrc-lab-reproduce: step '{failed}' failed (exit {code}); later steps not run", file=sys.stderr)
+        print(f"hrc-lab-reproduce: {problem}; later steps not run (--resume continues after the finished sweeps)",
+              file=sys.stderr)
     return code
 
 

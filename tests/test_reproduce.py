@@ -180,26 +180,41 @@ def test_resume_skips_the_sweeps_an_earlier_reproduction_finished_and_counts_the
     assert ran.read_text().split()[-3:] == ["one", "two", "report"]
 
 
-def test_a_signal_to_the_reproduction_stops_the_whole_step_with_its_workers(tmp_path):
-    """SIGTERM (a cluster's time limit, `kill`) reaches the sweep's process group, launcher workers included, and the
-    reproduction exits with the signal's code instead of leaving them running."""
+def test_a_signal_stops_the_whole_step_with_its_workers_and_the_summary_says_so(tmp_path, runs_folder):
+    """SIGTERM (a cluster's time limit, `kill`) reaches the sweep's process group: the step handles it (a job marks
+    its MLflow run KILLED), a launcher worker that outlives it (an idle joblib worker) is killed after the grace
+    time, the summary shows the step as stopped and the later steps as not run, nothing is journaled, and the
+    reproduction exits with the signal's code."""
     import os
     import signal
     import subprocess
     import time
 
-    pid_file = tmp_path / "worker.pid"
-    worker = ("import subprocess, sys, time; p = subprocess.Popen([sys.executable, '-c', 'import time; "
-              f"time.sleep(120)']); open({str(pid_file)!r}, 'w').write(str(p.pid)); time.sleep(120)")
-    runner = ("import sys; from hrc_lab.reproduce import _run; "
-              f"sys.exit(_run([sys.executable, '-c', {worker!r}]))")
-    reproduction = subprocess.Popen([sys.executable, "-c", runner])
+    pid_file, handled = tmp_path / "worker.pid", tmp_path / "handled"
+    worker = ("import os, signal, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
+              f"open({str(pid_file)!r}, 'w').write(str(os.getpid())); time.sleep(120)")
+    step = ("import signal, subprocess, sys, time\n"
+            f"def stop(signum, frame):\n    open({str(handled)!r}, 'w').write('KILLED'); sys.exit(1)\n"
+            "signal.signal(signal.SIGTERM, stop)\n"
+            f"subprocess.Popen([sys.executable, '-c', {worker!r}]); time.sleep(120)\n")
+    runner = ("import sys; from hrc_lab import reproduce; from hrc_lab.reproduce import Step; "
+              "reproduce.STOP_GRACE_S = 1.0; "
+              f"reproduce.PLAN = [Step('sweep stopped', 'sweep', 'ch6_grasp', ('python', '-c', {step!r})), "
+              "Step('report ch6_grasp', 'report', 'ch6_grasp', ('python', '-c', 'pass'))]; "
+              "sys.exit(reproduce.main(['ch6']))")
+    reproduction = subprocess.Popen([sys.executable, "-c", runner], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                    text=True)
     deadline = time.monotonic() + 60
     while not (pid_file.exists() and pid_file.read_text()) and time.monotonic() < deadline:
         time.sleep(0.1)
     grandchild = int(pid_file.read_text())
     reproduction.send_signal(signal.SIGTERM)
-    assert reproduction.wait(timeout=30) == 128 + signal.SIGTERM
+    out, err = reproduction.communicate(timeout=30)
+    assert reproduction.returncode == 128 + signal.SIGTERM
+    assert handled.read_text() == "KILLED"
+    assert "STOPPED (SIGTERM)" in out and "report ch6_grasp" in out and "not run" in out and "total" in out
+    assert "stopped by SIGTERM during step 'sweep stopped'" in err
+    assert not (runs_folder / "reproduce.jsonl").exists()
     for _ in range(100):
         try:
             os.kill(grandchild, 0)
