@@ -65,6 +65,10 @@ LEFT_OUT = {
 # runs the experiment files as configured; each ablation section prints the command that re-runs exactly its runs.
 ABLATION_TABLE = re.compile(r"_v[0-9a-f]{8}\.csv$")
 
+# Sweeps that copy a file into reports/ themselves; with --check the copy goes to the fresh reports' folder instead
+# (the report links it relative to itself), so a check never rewrites committed files.
+PUBLISHES = {"experiment=data/render_demo": "protocol.publish_dir={out}/videos"}
+
 # Report columns that are wall-clock speeds of the machine that ran them, not results: never compared.
 MACHINE_DEPENDENT = {"latency_ms", "env steps/s", "demos/min"}
 
@@ -115,6 +119,8 @@ def command_of(step: Step, tracking_uri: str | None, out: Path | None) -> list[s
     argv = [sys.executable if head == "python" else str(bin_dir / head), *rest]
     if step.kind == "sweep" and tracking_uri:
         argv.append(f"logger.tracking_uri={tracking_uri}")
+    if step.kind == "sweep" and out:
+        argv += [override.format(out=out) for arg, override in PUBLISHES.items() if arg in step.argv]
     if step.kind == "report":
         argv += ["--tracking-uri", tracking_uri] if tracking_uri else []
         argv += ["--out", str(out)] if out else []

@@ -54,6 +54,15 @@ def test_dry_run_prints_every_step(capsys):
     ]
 
 
+def test_check_sends_the_demonstration_videos_to_the_fresh_folder_not_the_committed_one(capsys):
+    assert main(["data", "--dry-run"]) == 0
+    assert "publish_dir" not in capsys.readouterr().out
+    assert main(["data", "--dry-run", "--check"]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if "experiment=data/render_demo" in line]
+    assert len(lines) == 4
+    assert all(line.endswith("'protocol.publish_dir=<temporary folder>/videos'") for line in lines)
+
+
 def test_run_stops_at_the_first_failure(monkeypatch, capsys):
     fake = [
         Step("sweep ok", "sweep", "ch6_grasp", ("python", "-c", "print('first ran')")),
