@@ -185,3 +185,66 @@ def test_placement_noise_moves_the_experts_placing_stage_and_only_it(ec):
         ScriptedExpert(ec, placement_noise=-0.01)
     with pytest.raises(ValueError, match="rng"):
         ScriptedExpert(ec, placement_noise=0.02)
+
+
+def test_lean_step_is_robosuites_step_bit_for_bit():
+    """``lean_step`` on and off, the same seed and 60 actions (the expert's, every third one random with the suction
+    switched on or off at random, a wrist-3 action): the simulator state (joints, object poses), the lip, the held
+    object, the collisions, reward, info and robosuite's observations (``step_observations``) agree at every step.
+    Tolerance 0: the two paths compute the same floating-point operations (measured difference exactly 0.0)."""
+    from hrc_lab.env import ENVS
+    from hrc_lab.registry import named
+
+    cells = [ENVS.build(named(ErrorCorrectionConfig(sim=SimSettings(yaw_action=True, lean_step=lean)),
+                              "error_correction"), seed=1) for lean in (False, True)]
+    full, lean = cells
+    lean.step_observations = True
+    for cell in cells:
+        cell.reset()
+    expert, rng, held = ScriptedExpert(full), np.random.default_rng(0), set()
+    for t in range(60):
+        step = expert.act()
+        action = step.action if t % 3 else np.append(rng.uniform(-0.1, 0.1, 4), rng.choice([-1.0, 1.0]))
+        (obs, reward, done, info), (lean_obs, lean_reward, lean_done, lean_info) = (c.step(action) for c in cells)
+        np.testing.assert_array_equal(lean.sim.get_state().flatten(), full.sim.get_state().flatten())
+        np.testing.assert_array_equal(lean.arm_qpos(), full.arm_qpos())
+        np.testing.assert_array_equal(lean.eef_position(), full.eef_position())
+        np.testing.assert_array_equal(lean.object_positions(), full.object_positions())
+        assert (lean.suction.held, lean.collisions, lean_reward, lean_done) == (full.suction.held, full.collisions,
+                                                                                  reward, done)
+        assert lean_info.keys() == info.keys() and lean_obs.keys() == obs.keys()
+        for key in info:
+            np.testing.assert_array_equal(lean_info[key], info[key])
+        for key in obs:
+            np.testing.assert_array_equal(lean_obs[key], obs[key])
+        held.add(full.suction.held)
+    assert {-1, full.plan[0]} <= held  # the sequence gripped the misplaced cuboid and ran with the cup empty
+    lean.step_observations = False
+    assert lean.step(np.zeros(5))[0] is None  # no observation unless asked for
+
+
+def test_the_contact_table_finds_the_collisions_classify_finds():
+    """Driving the arm down into the table: at every physics substep the table-based scan adds exactly the events
+    that classifying every contact both ways (the scan before the table) names, in the same order."""
+    env = ErrorCorrection(task="place", seed=0)
+    env.reset()
+    scan, model, checked = env._scan_contacts, env.sim.model._model, []
+
+    def scan_and_compare():
+        expected = list(env._step_collisions)
+        for g1, g2 in env.sim.data._data.contact.geom.tolist():
+            for a, b in ((g1, g2), (g2, g1)):
+                kind = env._classify(a, b, env.suction.held)
+                if kind:
+                    event = f"{kind}: {model.geom(a).name} / {model.geom(b).name}"
+                    if event not in expected:
+                        expected.append(event)
+                    break
+        scan()
+        assert env._step_collisions == expected
+        checked.append(len(expected))
+
+    env._scan_contacts = scan_and_compare
+    for _ in range(40):
+        env.step(np.array([0.0, 0.087, 0.0, 1.0]))  # shoulder down, suction requested
+    assert len(checked) == 400 and max(checked) >= 2 and env.collisions

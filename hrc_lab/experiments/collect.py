@@ -42,6 +42,7 @@ def record_episode(env, expert, action_noise: float = 0.0, rng: np.random.Genera
     if action_noise and rng is None:
         raise ValueError("action_noise needs an rng (the scene's own generator must not be consumed)")
 
+    env.step_observations = True  # the columns are robosuite's observations, which a lean step computes on request
     obs = env.reset()
     expert.reset()
     episode = {"scenario": getattr(env, "task", None) or "package_to_order", "plan": list(env.expert_plan())}

@@ -1,7 +1,12 @@
 """The robot cell shared by the Ch.3 and Ch.4 environments: a UR5e with a suction cup at a table with cuboids.
 
 Physics: MuJoCo steps of ``physics_timestep`` (5 ms; robosuite's default 2 ms makes its Python controller loop
-the bottleneck without changing what the experiments measure), ``1 / (control_freq * physics_timestep)`` per action.
+the bottleneck without changing what the experiments measure), ``1 / (control_freq * physics_timestep)`` per action,
+each split as robosuite's lite physics does: ``mj_step1``, the arm torques, the collision scan, ``mj_step2``. With
+``lean_step`` (the default) the cell runs these substeps itself with the control law of robosuite's JOINT_POSITION
+controller (gains, input scaling and position limits read from robosuite's controller object), skipping robosuite's
+per-substep controller, buffer and observable bookkeeping: the same physics bit for bit, about 2.5-3 times the
+control steps per second (``scripts/bench_cell_step.py``). Off, robosuite's ``ManipulationEnv.step`` runs them.
 
 Action (thesis 3.3 and 4.3), one control step at ``control_freq`` Hz:
     ``[dq_base, dq_shoulder, dq_elbow, suction]`` (+ ``dq_wrist3`` before suction with ``yaw_action=True``), joint
@@ -10,10 +15,13 @@ Action (thesis 3.3 and 4.3), one control step at ``control_freq`` Hz:
     at the end of the step. Wrist 1 and wrist 2 are not
     actuated by the policy: they follow so that the tool keeps pointing down (wrist1 = -pi/2 - shoulder - elbow,
     wrist2 = -pi/2). The six joint targets go to robosuite's BASIC composite controller whose arm part is
-    JOINT_POSITION (delta input, no scaling), i.e. the robot's own PD loop with gravity compensation.
+    JOINT_POSITION (delta input, no scaling), i.e. the robot's own PD loop with gravity compensation: per substep the
+    arm torques M_arm (kp (q_target - q) - kd dq) + bias, clipped to the actuators' range, with the critically damped
+    gains of :func:`arm_controller_config`. The suction cup has no actuators.
 
-Collisions are scanned at every physics substep: any arm link touching anything but its mount, the cup touching
-an object while another object is held, the held object touching anything but its allowed supports, or a resting
+Collisions are scanned at every physics substep (all contacts looked up at once in a table of forbidden geom pairs,
+filled in from the rule as pairs first touch): any arm link touching anything but its mount, the cup touching an
+object while another object is held, the held object touching anything but its allowed supports, or a resting
 object touching another object. A collision fails the trial (Eq. 4.7) and, with ``disable_effector_on_collision``
 (the DRL setting of 3.3), switches the suction off for the rest of the episode.
 
@@ -44,6 +52,7 @@ from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
 from robosuite.models.arenas import TableArena  # noqa: E402
 from robosuite.models.objects import BoxObject  # noqa: E402
 from robosuite.models.tasks import ManipulationTask  # noqa: E402
+from robosuite.utils.control_utils import set_goal_position  # noqa: E402
 from robosuite.utils.observables import Observable, sensor  # noqa: E402
 
 from hrc_lab.env.robot.settings import CELL_CAMERA  # noqa: E402
@@ -53,6 +62,7 @@ PICK, PLACE = 0, 1
 # Tool down, the lip 0.22 m above the table centre: the first reach of a trial starts at working height (from a
 # higher home the dynamic planner, which sees only Delta, must generalise to configurations it rarely saw).
 HOME_QPOS = np.array([-0.333, -1.474, 2.365, -np.pi / 2 + 1.474 - 2.365, -np.pi / 2, 0.0])
+UNSEEN = -1  # a contact table entry for a geom pair that has not touched yet (else 0 allowed, 1 forbidden)
 
 
 def arm_controller_config() -> dict:
@@ -97,6 +107,7 @@ class HRCCell(ManipulationEnv):
         camera_heights: int = 240,
         camera_widths: int = 320,
         physics_timestep: float = 0.005,
+        lean_step: bool = True,
     ) -> None:
         self.cell_objects = objects
         self.table_full_size = table_full_size
@@ -106,6 +117,11 @@ class HRCCell(ManipulationEnv):
         self.yaw_action = yaw_action
         self.disable_effector_on_collision = disable_effector_on_collision
         self.grip_after_step = grip_after_step
+        self.lean_step = lean_step
+        # lean_step only: step() returns robosuite's observation dict (else None), its observables updated after
+        # every substep as robosuite's step updates them (so they sample the same substep); their clock restarts at
+        # reset(), so switch this before a reset
+        self.step_observations = False
         self._suction_on = False
         self.np_random = np.random.default_rng(seed)
         self.collisions: list[str] = []
@@ -156,7 +172,8 @@ class HRCCell(ManipulationEnv):
         return 2 * obj + stage
 
     def allowed_supports(self, index: int) -> set[int]:
-        """Geom ids a held object may touch (besides the cup): the table, box floor, the object it stacks on."""
+        """Geom ids a held object may touch (besides the cup): the table, box floor, the object it stacks on. Fixed
+        within an episode: the contact scan caches the collision rule that reads it until the next reset."""
         return self._table_geoms
 
     def _after_step(self) -> None:
@@ -205,6 +222,9 @@ class HRCCell(ManipulationEnv):
         self._table_geoms = {model.geom("table_collision").id}
         self._arm_qpos = np.asarray(robot._ref_joint_pos_indexes)
         self._arm_dofs = np.asarray(robot._ref_joint_vel_indexes)
+        self._mass_matrix = np.zeros((model.nv, model.nv))  # lean_step's buffer for mj_fullM
+        self._arm_actuators = np.asarray(robot._ref_actuators_indexes_dict[robot.arms[0]])
+        self._arm_torque_range = model.actuator_ctrlrange[self._arm_actuators].T.copy()
         self._scratch = mujoco.MjData(model)  # forward kinematics of commanded configurations
         self._grip_site = model.site(self._gripper.important_sites["grip_site"]).id
         self.suction = Suction(
@@ -255,6 +275,7 @@ class HRCCell(ManipulationEnv):
         self.suction.reset()
         self._suction_on = False
         self.collisions = []
+        self._contact_tables: dict[int, np.ndarray] = {}  # held object -> forbidden[geom_a, geom_b] (UNSEEN at first)
         self._sample_scene()
         self.sim.forward()
 
@@ -319,6 +340,12 @@ class HRCCell(ManipulationEnv):
             target[5] = q[5] + np.clip(action[3], -self.max_joint_step, self.max_joint_step)
         return target
 
+    @property
+    def _arm_controller(self):
+        """robosuite's JOINT_POSITION controller of the arm (robosuite builds a new one at every reset)."""
+        robot = self.robots[0]
+        return robot.part_controllers[robot.arms[0]]
+
     def step(self, action):
         action = np.asarray(action, dtype=float)
         if action.shape != (self.policy_action_dim,):
@@ -328,8 +355,44 @@ class HRCCell(ManipulationEnv):
         self._step_collisions: list[str] = []
         self._q_cmd = self.joint_targets(action)
         low_level = self._q_cmd - self.arm_qpos()
-        obs, reward, done, info = super().step(low_level)
-        return obs, reward, done, info
+        if self.lean_step:
+            return self._lean_step(low_level)
+        return super().step(low_level)
+
+    def _lean_step(self, low_level: np.ndarray):
+        """robosuite's ``step`` (lite physics) for the joint deltas ``low_level`` without its per-substep
+        bookkeeping: the substeps with :meth:`_servo_torques` and the contact scan, then ``_post_action`` as there.
+        The controller is the fixed-gain, delta-input one of :func:`arm_controller_config` (no interpolator).
+        The observation dict is robosuite's with ``step_observations``, else None."""
+        if self.done:
+            raise ValueError("executing action in terminated episode")
+        self.timestep += 1
+        controller = self._arm_controller
+        q = self.arm_qpos()  # JOINT_POSITION.set_goal: the delta input is added to the joints at the first substep
+        goal = set_goal_position(controller.scale_action(low_level), q, position_limit=controller.position_limits)
+        model, data = self.sim.model._model, self.sim.data._data
+        for _ in range(int(self.control_timestep / self.model_timestep)):
+            mujoco.mj_step1(model, data)
+            data.ctrl[self._arm_actuators] = self._servo_torques(controller, goal)
+            self._scan_contacts()
+            mujoco.mj_step2(model, data)
+            if self.step_observations:
+                self._update_observables()
+        self.cur_time += self.control_timestep
+        reward, done, info = self._post_action(low_level)
+        return (self._get_observations() if self.step_observations else None), reward, done, info
+
+    def _servo_torques(self, controller, goal: np.ndarray) -> np.ndarray:
+        """The arm torques robosuite's JOINT_POSITION ``run_controller`` computes after ``mj_step1`` (M_arm (kp
+        (goal - q) - kd dq) + gravity and Coriolis bias), clipped to the actuators' range as ``Robot.control`` does;
+        the same operations in the same order, so the same bits."""
+        data = self.sim.data._data
+        mujoco.mj_fullM(self.sim.model._model, self._mass_matrix, data.qM)
+        desired = controller.kp * (goal - data.qpos[self._arm_qpos]) - controller.kd * data.qvel[self._arm_dofs]
+        # robosuite's row-then-column indexing: its Fortran-ordered block takes the same BLAS path in np.dot
+        arm_mass = self._mass_matrix[self._arm_dofs, :][:, self._arm_dofs]
+        torques = np.dot(arm_mass, desired) + data.qfrc_bias[self._arm_dofs]
+        return torques.clip(*self._arm_torque_range)  # what np.clip calls, without its Python wrapper
 
     def _pre_action(self, action, policy_step=False):
         super()._pre_action(action, policy_step)
@@ -359,19 +422,38 @@ class HRCCell(ManipulationEnv):
     # --- contacts ---------------------------------------------------------------------------------------------
 
     def _scan_contacts(self) -> None:
-        data = self.sim.data._data
+        """Add this substep's collisions to ``_step_collisions`` (each event once, in contact order). All contacts
+        are looked up at once in the held object's :meth:`_contact_table`; only those marked forbidden or UNSEEN are
+        classified (:meth:`_collision_event`), which fills in the UNSEEN entries."""
         held = self.suction.held
-        for k in range(data.ncon):
-            contact = data.contact[k]
-            pair = (int(contact.geom1), int(contact.geom2))
-            for a, b in (pair, pair[::-1]):
-                kind = self._classify(a, b, held)
-                if kind:
-                    model = self.sim.model._model
-                    event = f"{kind}: {model.geom(a).name} / {model.geom(b).name}"
-                    if event not in self._step_collisions:
-                        self._step_collisions.append(event)
-                    break
+        pairs = self.sim.data._data.contact.geom
+        table = self._contact_table(held)
+        for k in table[pairs[:, 0], pairs[:, 1]].nonzero()[0]:
+            a, b = int(pairs[k, 0]), int(pairs[k, 1])
+            event = self._collision_event(a, b, held)
+            table[a, b] = table[b, a] = event is not None
+            if event is not None and event not in self._step_collisions:
+                self._step_collisions.append(event)
+
+    def _contact_table(self, held: int) -> np.ndarray:
+        """forbidden[geom_a, geom_b] while object ``held`` is held (-1: none): 1 when a contact of the two geoms is a
+        collision, 0 when it is not, UNSEEN until the pair first touches; kept until the next reset, as the rule
+        (:meth:`_classify` and ``allowed_supports``) is fixed within an episode."""
+        table = self._contact_tables.get(held)
+        if table is None:
+            ngeom = self.sim.model._model.ngeom
+            table = self._contact_tables[held] = np.full((ngeom, ngeom), UNSEEN, dtype=np.int8)
+        return table
+
+    def _collision_event(self, a: int, b: int, held: int) -> str | None:
+        """The collision a contact of geoms ``a`` and ``b`` is (:meth:`_classify` both ways), named with the geoms
+        in the order that classified it, or None when it is allowed."""
+        for first, second in ((a, b), (b, a)):
+            kind = self._classify(first, second, held)
+            if kind:
+                model = self.sim.model._model
+                return f"{kind}: {model.geom(first).name} / {model.geom(second).name}"
+        return None
 
     def _classify(self, a: int, b: int, held: int) -> str | None:
         """A collision name when geom ``a`` touching geom ``b`` is forbidden, else None (checked both ways)."""

@@ -161,8 +161,10 @@ class ScriptedExpert:
 def run_episode(env: HRCCell, expert: ScriptedExpert | None = None, record: bool = False):
     """Reset ``env`` and let the expert act until its plan ends or the horizon is hit.
 
-    Returns ``(success, steps, trace)``; ``trace`` holds per-step dicts when ``record``.
+    Returns ``(success, steps, trace)``; ``trace`` holds per-step dicts when ``record`` (with robosuite's
+    observations: the cell then computes them at every step).
     """
+    env.step_observations = env.step_observations or record
     env.reset()
     expert = expert or ScriptedExpert(env)
     expert.reset()

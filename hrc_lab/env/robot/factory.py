@@ -29,6 +29,7 @@ def cell_kwargs(sim: SimSettings) -> dict:
         "yaw_action": sim.yaw_action,
         "disable_effector_on_collision": sim.disable_effector_on_collision,
         "grip_after_step": sim.grip_after_step,
+        "lean_step": sim.lean_step,
     }
 
 

@@ -32,6 +32,11 @@ class SimSettings:
     # off: it grips only when the command is applied, before the arm moves (a lip that reaches the face during a
     # step grips one step later)
     grip_after_step: bool = False
+    # the cell runs MuJoCo's substeps itself with robosuite's JOINT_POSITION control law instead of robosuite's step
+    # and its per-substep controller/observable bookkeeping: the same physics bit for bit (tests/test_sim_cells.py),
+    # 2.4-2.7x the control steps/s of the DRL goal env and ~3x the cell's own (scripts/bench_cell_step.py, 2 shared
+    # cores: 86 -> 206-228 steps/s); off: robosuite's ManipulationEnv.step
+    lean_step: bool = True
     # CASE 1 / CASE 2 of the scenario. package_to_order: 1 robot alone, 2 a simulated human packs a random subset
     # first; error_correction one_object: 1 blue wrong, 2 red wrong; two_object: 1 blue on red's place, 2 red on blue's
     case: int = 1
