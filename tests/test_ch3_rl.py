@@ -20,7 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
     ("ch3/fig_3_13", ["rl.delta_g=0"], "rl.delta_g"),
     ("ch3/fig_3_13", ["rl.guidance=oracle"], "rl.guidance"),
     ("ch3/fig_3_13", ["protocol.epochs=0"], "protocol.epochs"),
-    ("ch3/fig_3_13", ["protocol.episodes_per_epoch=0"], "protocol.episodes_per_epoch"),
+    ("ch3/fig_3_13", ["rl.cycles_per_epoch=0"], "rl.cycles_per_epoch"),
+    ("ch3/fig_3_13", ["rl.n_envs=0"], "rl.n_envs"),
     ("ch3/fig_3_13", ["rl=none"], "rl"),
     ("ch3/fig_3_12", ["motion.ndp.mode=regression"], "rl.guidance=ndp_direction needs motion.ndp.mode"),
     ("ch3/fig_3_9", ["rl=ddpg_her"], "rl"),
@@ -33,20 +34,21 @@ def test_experiment_config_errors_name_the_key(compose_config, experiment, overr
 
 TINY = ["hydra.mode=RUN", "env=error_correction_one_object_case1", "seed=0", "trainer.max_epochs=1",
         "motion.steps=10", "motion.ndp.steps=10", "protocol.demos=2", "protocol.epochs=2",
-        "protocol.episodes_per_epoch=1", "protocol.eval_episodes=1", "protocol.checkpoint_every=1",
-        "rl.steps_per_subtask=8", "rl.learning_starts=8", "rl.batch_size=8", "rl.net_arch=[16]",
+        "rl.cycles_per_epoch=1", "rl.episodes_per_cycle=1", "rl.gradient_steps=8", "protocol.eval_episodes=1",
+        "protocol.checkpoint_every=1", "rl.steps_per_subtask=8", "rl.learning_starts=8", "rl.batch_size=8",
+        "rl.demo_batch_size=2", "rl.net_arch=[16]",
         "rl.buffer_size=200"]
 
 
 def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_path, monkeypatch, capsys):
     job = run_job("experiment=ch3/fig_3_13", "rl.lam=1", *TINY)
     client, run_id = job.client, job.run.info.run_id
-    for metric in ("success_rate", "collision_rate", "grip_rate", "moved_rate", "guidance_rate", "env_steps_per_s",
-                   "updates_per_s", "train_grip_rate", "train_moved_rate", "train_final_distance"):
+    for metric in ("success_rate", "collision_rate", "grip_rate", "moved_rate", "train_guidance_rate",
+                   "env_steps_per_s", "updates_per_s", "train_grip_rate", "train_moved_rate", "train_final_distance"):
         assert [m.step for m in client.get_metric_history(run_id, metric)] == [1, 2], metric
     # 3.3's action: the joints (with wrist 3) and no suction dimension; the cup grips what it touches
     assert job.run.data.params["rl.suction"] == "auto"
-    guidance = [m.value for m in client.get_metric_history(run_id, "guidance_rate")]
+    guidance = [m.value for m in client.get_metric_history(run_id, "train_guidance_rate")]
     assert all(0 <= g <= 1 for g in guidance) and max(guidance) > 0  # lambda 1: guided episodes correct
     assert client.get_metric_history(run_id, "updates_per_s")[-1].value > 0  # trained after the first episode
     assert job.run.data.tags["method"] == "ddpg_her_guided_lam1"  # runs differing in rl.lam have their own names
@@ -93,7 +95,7 @@ def test_a_killed_fig_3_13_run_resumes_from_its_agent_checkpoint(run_job):
     client.set_terminated(parent, "KILLED")
     second = run_job("experiment=ch3/fig_3_13", "rl.lam=0.7", *TINY, f"resume_from={parent}")
     assert second.run.info.run_id != parent and second.run.data.tags["resumed_from"] == parent
-    for metric in ("success_rate", "guidance_rate"):
+    for metric in ("success_rate", "train_guidance_rate"):
         old = [(m.step, m.value) for m in client.get_metric_history(parent, metric)]
         assert sorted((m.step, m.value) for m in client.get_metric_history(second.run.info.run_id, metric)) == old
     assert second.metrics["final_success_rate"] == first.metrics["final_success_rate"]

@@ -6,27 +6,23 @@ The two-level planner (task classifier c(x), sub-goal planner h, neural dynamic 
 scripted expert's demonstrations as in Table 3.1 (:func:`hrc_lab.experiments.ch3_motion.train_two_level`); it then
 guides a stable-baselines3 DDPG + HER agent (:mod:`hrc_lab.rl`) in a fraction ``rl.lam`` of the episodes.
 
-**Epoch** (ours): Algorithm 1's loop runs one episode and one update per epoch, so the thesis' 550 epochs are 550
-episodes; ours is ``protocol.episodes_per_epoch`` training episodes of
-``rl.steps_per_subtask`` control steps each (after each episode, one gradient step per collected step once
-``rl.learning_starts`` steps were collected), then ``protocol.eval_episodes`` evaluation episodes of the
-deterministic policy on held-out scenes (no noise, no guidance). The subtasks of a correction plan are trained in
-sequence, one agent each, ``protocol.epochs`` epochs per subtask; epoch ``k * epochs + e`` of the run is epoch
-``e`` of subtask ``k``. Every epoch logs ``success_rate``, ``collision_rate``, ``final_distance``, ``grip_rate``
-and ``moved_rate`` (evaluation; :func:`~hrc_lab.rl.agent.evaluate`),
-``train_success_rate``, ``train_collision_rate``, ``train_grip_rate``, ``train_moved_rate`` and
-``train_final_distance`` (that epoch's
-training episodes, exploration noise and guidance included; :class:`~hrc_lab.rl.agent.EpisodeMetrics`),
-``guidance_rate`` (corrected / collected steps of those episodes), ``env_steps_per_s`` (collected
-steps / time in rollout collection, guidance included) and ``updates_per_s`` (gradient steps / time in training)
-as MLflow metrics with ``step`` = the epoch.
+**Epoch**: the HER reference implementation's, which the thesis' 550 epochs are read as (:mod:`hrc_lab.rl.trainer`):
+``rl.cycles_per_epoch`` cycles of ``rl.episodes_per_cycle`` training episodes of ``rl.steps_per_subtask`` control
+steps, each cycle followed by ``rl.gradient_steps`` gradient steps and one target update; then
+``protocol.eval_episodes`` evaluation episodes of the deterministic policy on held-out scenes (no noise, no
+guidance). The subtasks of a correction plan are trained in sequence, one agent each, ``protocol.epochs`` epochs
+per subtask; epoch ``k * epochs + e`` of the run is epoch ``e`` of subtask ``k``. Every epoch logs
+``success_rate``, ``collision_rate``, ``final_distance``, ``grip_rate`` and ``moved_rate`` (evaluation;
+:func:`~hrc_lab.rl.agent.evaluate`), ``train_success_rate``, ``train_collision_rate``, ``train_grip_rate``,
+``train_moved_rate``, ``train_final_distance`` and ``train_guidance_rate`` (that epoch's training episodes,
+exploration noise and guidance included; :class:`~hrc_lab.rl.agent.EpisodeMetrics`), ``env_steps_per_s``,
+``updates_per_s`` and ``epoch_s`` as MLflow metrics with ``step`` = the epoch.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 from hrc_lab.env import ENVS
 from hrc_lab.experiments.context import RunContext
@@ -69,16 +65,16 @@ def train_guide(ctx: RunContext):
     return CorrectionGuide.from_config(ctx.cfg.rl, classifier, planner, ndp, protocol.subgoals_per_stage)
 
 
-def build_agent(ctx: RunContext, env, guide):
-    from hrc_lab.rl import RLS
+def training_envs(ctx: RunContext, guide, subtask: int):
+    """The run's ``rl.n_envs`` training envs of ``subtask``, guided by ``guide`` when the run is guided."""
+    from hrc_lab.rl import trainer
 
-    if ctx.cfg.rl.name == "ddpg_her_guided":
-        return RLS.build(ctx.cfg.rl, env=env, guide=guide, seed=ctx.seed)
-    return RLS.build(ctx.cfg.rl, env=env, seed=ctx.seed)
+    factory = trainer.goal_env_factory(ctx.cfg.env, ctx.cfg.rl, ctx.seed, guide, subtask=subtask)
+    return trainer.training_envs(factory, ctx.cfg.rl.n_envs)
 
 
 def save_checkpoint(ctx: RunContext, agent, subtask: int) -> None:
-    """The agent (and its replay buffer when small) under the run's ``agents/subtask<k>/``."""
+    """The agent (its demonstrations, and its replay buffer when small) under the run's ``agents/subtask<k>/``."""
     from hrc_lab.rl.agent import save_agent
 
     folder = f"{AGENTS_DIR}/subtask{subtask}"
@@ -88,14 +84,14 @@ def save_checkpoint(ctx: RunContext, agent, subtask: int) -> None:
 
 EPOCH_METRICS = ("success_rate", "collision_rate", "final_distance", "grip_rate", "moved_rate",
                  "train_success_rate", "train_collision_rate", "train_grip_rate", "train_moved_rate",
-                 "train_final_distance", "guidance_rate", "env_steps_per_s", "updates_per_s", "subtask")
+                 "train_final_distance", "train_guidance_rate", "env_steps_per_s", "updates_per_s", "epoch_s",
+                 "subtask")
 
 
-def resume_agent(ctx: RunContext, env, guide, subtask: int):
-    """With ``resume_from``: the killed run's latest agent of ``subtask`` (and its replay buffer when it was
-    saved), or None when that run saved none. (A lambda-0 agent loads as the unguided ``HerDDPG``: it never
-    corrects anyway.)"""
-    from hrc_lab.rl.agent import AGENT_FILE, BUFFER_FILE, load_agent
+def resume_agent(ctx: RunContext, env, subtask: int):
+    """With ``resume_from``: the killed run's latest agent of ``subtask`` (with its saved buffers), or None when
+    that run saved none."""
+    from hrc_lab.rl.agent import AGENT_FILE, BUFFER_FILE, DEMO_BUFFER_FILE, load_agent
 
     if not ctx.cfg.resume_from:
         return None
@@ -103,8 +99,9 @@ def resume_agent(ctx: RunContext, env, guide, subtask: int):
     saved = ctx.tracker.resume_checkpoint(f"{folder}/{AGENT_FILE}")
     if saved is None:
         return None
-    ctx.tracker.resume_checkpoint(f"{folder}/{BUFFER_FILE}")  # into the same folder, when it exists
-    return load_agent(saved.parent, env, guide)
+    for name in (BUFFER_FILE, DEMO_BUFFER_FILE):  # into the same folder, when they exist
+        ctx.tracker.resume_checkpoint(f"{folder}/{name}")
+    return load_agent(saved.parent, env)
 
 
 def copy_history(ctx: RunContext, last_step: int) -> None:
@@ -116,54 +113,53 @@ def copy_history(ctx: RunContext, last_step: int) -> None:
                 ctx.tracker.log_metrics({key: metric.value}, step=metric.step)
 
 
+def add_expert_demos(ctx: RunContext, agent, subtask: int) -> None:
+    """``protocol.expert_demos`` scripted-expert episodes of ``subtask`` into the agent's demonstration buffer, on
+    scenes of their own seed stream (not the training or evaluation scenes)."""
+    from hrc_lab.rl.agent import add_demonstrations
+    from hrc_lab.rl.goal_env import make_goal_env
+
+    env = make_goal_env(ctx.cfg.env, ctx.cfg.rl, seed=20_000 + ctx.seed, subtask=subtask)
+    success = add_demonstrations(agent, env, ctx.cfg.protocol.expert_demos)
+    ctx.tracker.log_metrics({f"expert_demo_success_rate_subtask{subtask}": success})
+    env.close()
+
+
 def train_subtasks(ctx: RunContext) -> dict[str, float]:
     """Train one agent per subtask of the env's correction plan, in sequence, ``protocol.epochs`` epochs each
-    (module docstring); per-epoch metrics with step = epoch; the final agents as artifacts."""
-    from stable_baselines3.common.callbacks import CallbackList
-
-    from hrc_lab.rl.agent import EpisodeMetrics, PhaseTimes, evaluate, learn_episodes
+    (module docstring; the loop is :func:`hrc_lab.rl.trainer.train_epochs`); per-epoch metrics with step = epoch;
+    the final agents as artifacts."""
+    from hrc_lab.rl import RLS
+    from hrc_lab.rl.agent import evaluate
     from hrc_lab.rl.goal_env import make_goal_env
-    from hrc_lab.rl.guidance import GuidedDDPG
+    from hrc_lab.rl.trainer import completed_epochs, episodes_per_epoch, train_epochs
 
     protocol, rl = ctx.cfg.protocol, ctx.cfg.rl
     guide = train_guide(ctx) if guided(ctx) else None
     probe = make_goal_env(ctx.cfg.env, rl, seed=ctx.seed, subtask=0)
     n_subtasks = len(probe.cell.expert_plan())
+    horizon = probe.horizon
     probe.close()
     for subtask in range(n_subtasks):
-        env = make_goal_env(ctx.cfg.env, rl, seed=ctx.seed, subtask=subtask)
+        envs = training_envs(ctx, guide, subtask)
         test = evaluation_env(ctx.cfg.env, rl, ctx.seed, subtask)
-        agent = resume_agent(ctx, env, guide, subtask) or build_agent(ctx, env, guide)
-        done = agent.num_timesteps // env.horizon // protocol.episodes_per_epoch  # epochs a resumed agent had
+        agent = resume_agent(ctx, envs, subtask)
+        if agent is None:
+            agent = RLS.build(rl, env=envs, seed=ctx.seed)
+            if protocol.expert_demos:
+                add_expert_demos(ctx, agent, subtask)
+        done = completed_epochs(agent, rl)
         if done:
             copy_history(ctx, subtask * protocol.epochs + done)
-        timer = PhaseTimes()
-        training: dict[str, float] = {}  # the epoch's training episodes (guided ones included), as they ended
-        callback = CallbackList([EpisodeMetrics(lambda values, step, into=training: into.update(values),
-                                                every=protocol.episodes_per_epoch), timer])
-        epochs = tqdm(range(done + 1, protocol.epochs + 1), desc=f"{ctx.cfg.env.cell} subtask {subtask}", unit="epoch")
-        for epoch in epochs:
-            steps, updates = agent.num_timesteps, agent._n_updates
-            corrected = agent.guidance_counts["corrected"] if isinstance(agent, GuidedDDPG) else 0
-            collect_s, train_s = timer.collect_s, timer.train_s
-            learn_episodes(agent, epoch * protocol.episodes_per_epoch, callback)
-            scores = evaluate(agent, test, protocol.eval_episodes, seed=evaluation_seed(epoch))
-            corrected = agent.guidance_counts["corrected"] - corrected if isinstance(agent, GuidedDDPG) else 0
-            metrics = {
-                **scores,
-                **{key: training.get(key, float("nan")) for key in ("train_success_rate", "train_collision_rate",
-                                                                    "train_grip_rate", "train_moved_rate",
-                                                                    "train_final_distance")},
-                "guidance_rate": corrected / max(1, agent.num_timesteps - steps),
-                "env_steps_per_s": (agent.num_timesteps - steps) / max(1e-9, timer.collect_s - collect_s),
-                "updates_per_s": (agent._n_updates - updates) / max(1e-9, timer.train_s - train_s),
-                "subtask": float(subtask),
-            }
-            ctx.tracker.log_metrics(metrics, step=subtask * protocol.epochs + epoch)
-            if epoch % protocol.checkpoint_every == 0 and epoch < protocol.epochs:
-                save_checkpoint(ctx, agent, subtask)
-        save_checkpoint(ctx, agent, subtask)
-        env.close()
+        train_epochs(agent, rl, protocol.epochs,
+                     evaluate=lambda agent, epoch, test=test: evaluate(agent, test, protocol.eval_episodes,
+                                                                       seed=evaluation_seed(epoch)),
+                     log=lambda metrics, step, k=subtask: ctx.tracker.log_metrics({**metrics, "subtask": float(k)},
+                                                                                  step=step),
+                     save=lambda agent, k=subtask: save_checkpoint(ctx, agent, k),
+                     checkpoint_every=protocol.checkpoint_every, step_offset=subtask * protocol.epochs,
+                     desc=f"{ctx.cfg.env.cell} subtask {subtask}")
+        envs.close()
         test.close()
     # the run's curves as MLflow holds them (a resumed run's include the epochs it copied)
     history = {key: {m.step: m.value for m in ctx.tracker.client.get_metric_history(ctx.tracker.run_id, key)}
@@ -171,7 +167,7 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
     curves = pd.DataFrame(history).rename_axis("epoch").reset_index().sort_values("epoch")
     ctx.tracker.log_table(curves, "epochs")
     last = curves.groupby("subtask").tail(1)
-    collected = n_subtasks * protocol.epochs * protocol.episodes_per_epoch * rl.steps_per_subtask
+    collected = n_subtasks * protocol.epochs * episodes_per_epoch(rl) * horizon
     return {
         # the overall success rate: mean over the plan's subtasks of the last epoch's evaluation
         "final_success_rate": float(last.success_rate.mean()),
@@ -184,7 +180,7 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
         "final_train_moved_rate": float(last.train_moved_rate.mean()),
         "final_train_distance": float(last.train_final_distance.mean()),
         "best_success_rate": float(curves.groupby("subtask").success_rate.max().mean()),
-        "mean_guidance_rate": float(curves.guidance_rate.mean()),
+        "mean_guidance_rate": float(curves.train_guidance_rate.mean()),
         "mean_env_steps_per_s": float(curves.env_steps_per_s.mean()),
         "mean_updates_per_s": float(curves.updates_per_s.mean()),
         "n_subtasks": float(n_subtasks),
@@ -216,6 +212,7 @@ def fig_3_9(ctx: RunContext) -> dict[str, float]:
 
     from hrc_lab.rl.agent import build_guided_ddpg_her, learn_episodes
     from hrc_lab.rl.goal_env import make_goal_env
+    from hrc_lab.rl.guidance import GuidedEnv
 
     protocol = ctx.cfg.protocol
     guide = train_guide(ctx)
@@ -248,7 +245,9 @@ def fig_3_9(ctx: RunContext) -> dict[str, float]:
                                  learning_starts=protocol.episodes * ctx.cfg.rl.steps_per_subtask * 10 + 1)
         env = make_goal_env(ctx.cfg.env, rl, seed=ctx.seed, subtask=0)
         env.reset(seed=ctx.seed)  # the same scenes for both arms
-        agent = build_guided_ddpg_her(rl, env, guide, seed=ctx.seed)
+        if lam:
+            env = GuidedEnv(env, guide, lam, rl.delta_g, seed=ctx.seed)
+        agent = build_guided_ddpg_her(rl, env, seed=ctx.seed)
         learn_episodes(agent, protocol.episodes, Distances(arm))
         env.close()
     frame = pd.DataFrame(rows)

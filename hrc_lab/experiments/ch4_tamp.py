@@ -131,39 +131,48 @@ def tamp_videos(ctx: RunContext, reasoner, motion) -> list:
 # --- DRL ------------------------------------------------------------------------------------------------------------
 
 
-def train_drl(ctx: RunContext):
-    """DDPG + HER: ``protocol.drl_demos`` scripted-expert episodes into the replay buffer, then
-    ``protocol.drl_iterations`` training episodes, CASE 1 or 2 drawn per episode; the training curve (every 20
-    episodes) and the throughput go to MLflow, the agent (without its replay buffer) to the artifacts."""
-    from stable_baselines3.common.callbacks import CallbackList
+DRL_AGENT_DIR = "agent"
 
-    from hrc_lab.rl import RLS
-    from hrc_lab.rl.agent import (
-        EpisodeMetrics,
-        EpisodeProgress,
-        PhaseTimes,
-        add_demonstrations,
-        learn_episodes,
-        save_agent,
-    )
+
+def train_drl(ctx: RunContext):
+    """DDPG + HER: ``protocol.drl_demos`` scripted-expert episodes (either case) into its demonstration buffer,
+    then ``protocol.drl_iterations`` cycles of training (:mod:`hrc_lab.rl.trainer`: the thesis' iterations read as
+    the HER reference implementation's cycles), CASE 1 or 2 drawn per episode, on ``rl.n_envs`` envs; per epoch
+    the training rates, the throughput and ``protocol.drl_eval_episodes`` evaluation episodes go to MLflow, the
+    agent to the artifacts (every ``checkpoint_every`` epochs too, from which a killed run resumes)."""
+    from hrc_lab.rl import RLS, trainer
+    from hrc_lab.rl.agent import AGENT_FILE, DEMO_BUFFER_FILE, add_demonstrations, evaluate, load_agent, save_agent
     from hrc_lab.rl.goal_env import make_goal_env
 
-    protocol = ctx.cfg.protocol
-    env = make_goal_env(ctx.cfg.env, ctx.cfg.rl, seed=ctx.seed, cases=CASES)
-    agent = RLS.build(ctx.cfg.rl, env=env, seed=ctx.seed)
-    if protocol.drl_demos:
-        success = add_demonstrations(agent, env, protocol.drl_demos, seed=5000 + ctx.seed)  # not the test scenes
-        ctx.tracker.log_metrics({"demo_success_rate": success})
-    timer = PhaseTimes()
+    protocol, rl = ctx.cfg.protocol, ctx.cfg.rl
+    envs = trainer.training_envs(trainer.goal_env_factory(ctx.cfg.env, rl, ctx.seed, cases=CASES), rl.n_envs)
+    saved = ctx.tracker.resume_checkpoint(f"{DRL_AGENT_DIR}/{AGENT_FILE}") if ctx.cfg.resume_from else None
+    if saved is not None:
+        ctx.tracker.resume_checkpoint(f"{DRL_AGENT_DIR}/{DEMO_BUFFER_FILE}")
+        agent = load_agent(saved.parent, envs)
+    else:
+        agent = RLS.build(rl, env=envs, seed=ctx.seed)
+        if protocol.drl_demos:
+            demo_env = make_goal_env(ctx.cfg.env, rl, seed=5000 + ctx.seed, cases=CASES)  # not the test scenes
+            ctx.tracker.log_metrics({"demo_success_rate": add_demonstrations(agent, demo_env, protocol.drl_demos)})
+            demo_env.close()
+    test = make_goal_env(ctx.cfg.env, rl, seed=9000 + ctx.seed, cases=CASES)  # held out from the trials' scenes
+
+    def save(agent) -> None:
+        save_agent(agent, ctx.output_dir / DRL_AGENT_DIR, replay_buffer=False)
+        ctx.tracker.log_artifact(ctx.output_dir / DRL_AGENT_DIR, DRL_AGENT_DIR)
+
+    epochs = -(-protocol.drl_iterations // rl.cycles_per_epoch)
     start = time.perf_counter()
-    learn_episodes(agent, protocol.drl_iterations,
-                   CallbackList([EpisodeMetrics(ctx.tracker.log_metrics, every=20), timer,
-                                 EpisodeProgress(protocol.drl_iterations, f"drl {ctx.cfg.env.cell}")]))
-    ctx.tracker.log_metrics({"drl_train_s": time.perf_counter() - start,
-                             "env_steps_per_s": agent.num_timesteps / max(timer.collect_s, 1e-9),
-                             "updates_per_s": agent._n_updates / max(timer.train_s, 1e-9)})
-    save_agent(agent, ctx.output_dir / "agent", replay_buffer=False)
-    ctx.tracker.log_artifact(ctx.output_dir / "agent", "agent")
+    trainer.train_epochs(
+        agent, rl, epochs,
+        evaluate=(lambda agent, epoch: evaluate(agent, test, protocol.drl_eval_episodes, seed=1000 * epoch))
+        if protocol.drl_eval_episodes else None,
+        log=ctx.tracker.log_metrics, save=save, checkpoint_every=protocol.checkpoint_every,
+        desc=f"drl {ctx.cfg.env.cell}")
+    ctx.tracker.log_metrics({"drl_train_s": time.perf_counter() - start})
+    envs.close()
+    test.close()
     return agent
 
 
@@ -183,11 +192,11 @@ def drl_episode(agent, goal_env) -> dict:
 
 
 def drl_goal_env(ctx: RunContext, case: int, **render):
-    from hrc_lab.rl.goal_env import HRCGoalEnv
+    from hrc_lab.rl.goal_env import HRCGoalEnv, task_switches
 
     rl = ctx.cfg.rl
     goal_env = HRCGoalEnv(case_cell(ctx, case, **render), steps_per_subtask=rl.steps_per_subtask,
-                          delta_r=rl.delta_r)
+                          delta_r=rl.delta_r, **task_switches(rl))
     goal_env.cell.reseed(1000 + ctx.seed)  # its first scene is the first trial's, as for the other systems
     return goal_env
 

@@ -103,11 +103,13 @@ def ddpg_text(runs: pd.DataFrame) -> str:
 
 
 def epoch_text(runs: pd.DataFrame) -> str:
-    return (f"An epoch: {amount(runs, 'protocol.episodes_per_epoch', 'training episodes')} of "
-            f"{amount(runs, 'rl.steps_per_subtask', 'control steps')}, then "
+    return (f"An epoch (the HER reference implementation's): {amount(runs, 'rl.cycles_per_epoch', 'cycles')} of "
+            f"{amount(runs, 'rl.episodes_per_cycle', 'training episodes')} of "
+            f"{amount(runs, 'rl.steps_per_subtask', 'control steps')} and "
+            f"{amount(runs, 'rl.gradient_steps', 'gradient steps')}, then "
             f"{amount(runs, 'protocol.eval_episodes', 'evaluation episodes')} of the deterministic policy on held-out "
-            f"scenes; {amount(runs, 'protocol.epochs', 'epochs')} per subtask, subtasks in sequence (thesis: 550 "
-            "epochs of Algorithm 1, one episode and one update each). Agent: DDPG + HER, hidden layers "
+            f"scenes; {amount(runs, 'protocol.epochs', 'epochs')} per subtask, subtasks in sequence (thesis: within "
+            "550 epochs, read as the reference implementation's). Agent: DDPG + HER, hidden layers "
             f"{net_arch(runs)}, {inputs_text(runs)}, {ddpg_text(runs)}; planner trained on "
             f"{amount(runs, 'protocol.demos', 'expert demonstrations')}. Final SR: the last epoch's evaluation, "
             f"mean over the plan's subtasks; mean ± std over seeds {sorted(runs.seed.unique())}.")

@@ -106,7 +106,10 @@ def table_4_3(runs: pd.DataFrame) -> Section:
         f"seeds {sorted(runs.seed.unique())}, thesis values in brackets. Ours and RM+RRT-Connect learn from CASE 1 "
         f"only (reasoning module: {amount(runs, 'protocol.min_demos', 'task episodes')} as Table 4.1; motion module: "
         f"{amount(runs, 'protocol.demos', 'robot demonstrations')} as Table 4.2); DRL trains "
-        f"{amount(runs, 'protocol.drl_iterations', 'episodes')} (thesis: 5000 iterations) on both cases.",
+        f"{amount(runs, 'protocol.drl_iterations', 'cycles')} of the HER reference implementation (thesis: 5000 "
+        f"iterations) on both cases, {amount(runs, 'rl.episodes_per_cycle', 'episodes')} and "
+        f"{amount(runs, 'rl.gradient_steps', 'gradient steps')} per cycle, with "
+        f"{amount(runs, 'protocol.drl_demos', 'scripted-expert demonstrations')}.",
         "",
         pd.DataFrame(rows).to_markdown(index=False),
         "",

@@ -2,14 +2,14 @@
 checkpoints.
 
 ``RLS.build(cfg, env=..., seed=...)`` gives :func:`build_ddpg_her` (``rl=ddpg_her``: the DRL baseline of 3.3 and
-Table 4.3) or, with ``guide=...``, :func:`build_guided_ddpg_her` (``rl=ddpg_her_guided``: Algorithm 1,
-:mod:`hrc_lab.rl.guidance`). Both are stable-baselines3's DDPG (one critic, no target smoothing) with the HER
-paper's action penalty, random exploration actions and clipped targets (:class:`~hrc_lab.rl.ddpg.HerDDPG`) and
+Table 4.3) or :func:`build_guided_ddpg_her` (``rl=ddpg_her_guided``: Algorithm 1, whose guidance wraps the envs,
+:mod:`hrc_lab.rl.guidance`). Both are stable-baselines3's DDPG (one critic, no target smoothing) trained as the HER
+reference implementation trains it, with demonstrations when given (:class:`~hrc_lab.rl.ddpg.HerDDPG`) and
 SB3's ``HerReplayBuffer`` on the goal env of :mod:`hrc_lab.rl.goal_env`; exploration adds Gaussian noise to the
 [-1, 1] actions; with ``rl.normalize_inputs`` the networks see the HER paper's normalised inputs
-(:mod:`hrc_lab.rl.normalization`). A checkpoint (:func:`save_agent`) is a folder with SB3's ``agent.zip`` and,
-when it is small enough, the gzipped replay buffer (``replay_buffer.pkl.gz``), which :func:`load_agent` restores
-to resume.
+(:mod:`hrc_lab.rl.normalization`). A checkpoint (:func:`save_agent`) is a folder with SB3's ``agent.zip``, the
+demonstrations and, when it is small enough, the gzipped replay buffer (``replay_buffer.pkl.gz``), which
+:func:`load_agent` restores to resume. The epoch loop around them is :mod:`hrc_lab.rl.trainer`.
 """
 
 from __future__ import annotations
@@ -21,21 +21,23 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 from stable_baselines3 import HerReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.noise import NormalActionNoise
+from stable_baselines3.common.vec_env import VecEnv
 from tqdm import tqdm
 
 from hrc_lab.rl.configs import RLConfig
 from hrc_lab.rl.ddpg import HerDDPG
 from hrc_lab.rl.goal_env import HRCGoalEnv
-from hrc_lab.rl.guidance import GuidedDDPG
 from hrc_lab.rl.normalization import NormalizedCombinedExtractor
 
 AGENT_FILE = "agent.zip"
 BUFFER_FILE = "replay_buffer.pkl.gz"
+DEMO_BUFFER_FILE = "demo_buffer.pkl.gz"
 MAX_BUFFER_BYTES = 256 * 2**20  # by default the replay buffer is saved while its transitions take at most this
 MOVED_M = 0.02  # a goal object farther than this from where the episode started it counts as moved, m
 
@@ -48,7 +50,15 @@ def policy_kwargs(cfg: RLConfig) -> dict[str, Any]:
     return kwargs
 
 
-def ddpg_her_kwargs(cfg: RLConfig, env: HRCGoalEnv, seed: int) -> dict[str, Any]:
+def cycle_steps(cfg: RLConfig, env: gym.Env | VecEnv) -> int:
+    """Steps of each env in one cycle: ``rl.episodes_per_cycle`` episodes over all envs, every episode of a goal env
+    ``horizon`` steps long (stable-baselines3 counts cycles in episodes with one env only)."""
+    n_envs = getattr(env, "num_envs", 1)
+    horizon = env.get_attr("horizon", [0])[0] if isinstance(env, VecEnv) else env.get_wrapper_attr("horizon")
+    return cfg.episodes_per_cycle // n_envs * int(horizon)
+
+
+def ddpg_her_kwargs(cfg: RLConfig, env: gym.Env | VecEnv, seed: int) -> dict[str, Any]:
     """The arguments of :class:`~hrc_lab.rl.ddpg.HerDDPG` (stable-baselines3's ``DDPG`` and the HER paper's
     additions) for an ``rl`` config."""
     n_actions = env.action_space.shape[0]
@@ -61,7 +71,7 @@ def ddpg_her_kwargs(cfg: RLConfig, env: HRCGoalEnv, seed: int) -> dict[str, Any]
         "batch_size": cfg.batch_size,
         "tau": cfg.tau,
         "gamma": cfg.gamma,
-        "train_freq": (cfg.train_freq, "episode"),
+        "train_freq": (cycle_steps(cfg, env), "step"),
         "gradient_steps": cfg.gradient_steps,
         "action_noise": NormalActionNoise(np.zeros(n_actions), np.full(n_actions, cfg.action_noise_std)),
         "replay_buffer_class": HerReplayBuffer,
@@ -71,6 +81,13 @@ def ddpg_her_kwargs(cfg: RLConfig, env: HRCGoalEnv, seed: int) -> dict[str, Any]
         "action_l2": cfg.action_l2,
         "random_eps": cfg.random_eps,
         "clip_return": cfg.clip_return,
+        "target_update": cfg.target_update,
+        "demo_batch_size": cfg.demo_batch_size,
+        "bc_weight": cfg.bc_weight,
+        "q_filter": cfg.q_filter,
+        "bc_pretrain_steps": cfg.bc_pretrain_steps,
+        "critic_warmup_steps": cfg.critic_warmup_steps,
+        "guided_episodes": cfg.guided_episodes,
         "seed": seed,
         "device": "cpu",
         "verbose": 0,
@@ -85,28 +102,28 @@ def with_silent_logger(agent: HerDDPG) -> HerDDPG:
     return agent
 
 
-def build_ddpg_her(cfg: RLConfig, env: HRCGoalEnv, seed: int = 0) -> HerDDPG:
-    """``rl=ddpg_her``: unguided DDPG + HER."""
+def build_ddpg_her(cfg: RLConfig, env: gym.Env | VecEnv, seed: int = 0) -> HerDDPG:
+    """``rl=ddpg_her``: unguided DDPG + HER on ``env`` (a goal env, or the vectorised envs of
+    :func:`hrc_lab.rl.trainer.training_envs`)."""
     if cfg.guidance != "none":
         raise ValueError(f"rl.guidance: ddpg_her is the unguided agent, got guidance '{cfg.guidance}'; "
                          "use rl=ddpg_her_guided")
     return with_silent_logger(HerDDPG(**ddpg_her_kwargs(cfg, env, seed)))
 
 
-def build_guided_ddpg_her(cfg: RLConfig, env: HRCGoalEnv, guide: Any, seed: int = 0) -> GuidedDDPG:
-    """``rl=ddpg_her_guided``: Algorithm 1 with the trained two-level planner ``guide`` (e.g. a
-    :class:`~hrc_lab.rl.guidance.CorrectionGuide`); lambda, delta_g from the config, the per-episode draws from a
-    generator seeded with ``seed``."""
+def build_guided_ddpg_her(cfg: RLConfig, env: gym.Env | VecEnv, seed: int = 0) -> HerDDPG:
+    """``rl=ddpg_her_guided``: Algorithm 1's agent. The agent is DDPG + HER as ``ddpg_her``; the guidance is in its
+    envs (:class:`~hrc_lab.rl.guidance.GuidedEnv`, which :func:`hrc_lab.rl.trainer.training_envs` wraps around
+    each env with the trained planner, lambda and delta_g of the config)."""
     if cfg.guidance == "none":
         raise ValueError("rl.guidance: ddpg_her_guided needs 'ndp' or 'ndp_direction' (for no guidance use "
                          "rl=ddpg_her, or rl.lam=0 for the pure-exploration arm of Fig. 3.13)")
-    expected = "direction" if cfg.guidance == "ndp_direction" else "regression"
-    mode = getattr(guide, "ndp_mode", None)
-    if mode is not None and mode != expected:
-        raise ValueError(f"rl.guidance={cfg.guidance} needs a dynamic planner with motion.ndp.mode={expected}, "
-                         f"got {mode}")
-    return with_silent_logger(GuidedDDPG(guide=guide, lam=cfg.lam, delta_g=cfg.delta_g, guidance_seed=seed,
-                                         **ddpg_her_kwargs(cfg, env, seed)))
+    return with_silent_logger(HerDDPG(**ddpg_her_kwargs(cfg, env, seed)))
+
+
+def episode_horizon(agent: HerDDPG) -> int:
+    """Control steps per episode of the agent's envs (every episode of a goal env has this length)."""
+    return int(agent.get_env().get_attr("horizon", [0])[0])
 
 
 class EpisodeMetrics(BaseCallback):
@@ -115,34 +132,41 @@ class EpisodeMetrics(BaseCallback):
     reached the objects (``grip_rate``: share of episodes in which a part was held at some step; ``moved_rate``:
     share in which a goal object moved more than ``moved_m`` from its start: without that, HER's relabelled
     goals are all about where the parts already were), the mean final |P_obj - P_goal| (``final_distance``, the
-    farthest goal object; Eq. 3.6's distance) and, for a :class:`GuidedDDPG`, the guidance rate so far
-    (corrected steps / steps); ``step`` is the episode count."""
+    farthest goal object; Eq. 3.6's distance) and, in guided envs (:class:`~hrc_lab.rl.guidance.GuidedEnv`), the
+    guidance rate of those episodes (corrected steps / steps); ``step`` is the episode count."""
 
     def __init__(self, log: Callable[..., None], every: int = 10, prefix: str = "train_",
                  moved_m: float = MOVED_M) -> None:
         super().__init__()
         self.log, self.every, self.prefix, self.moved_m = log, every, prefix, moved_m
         self.episodes: list[dict[str, bool]] = []
-        self.held = self.moved = False
+        self.held = self.moved = np.zeros(0, bool)  # per env of the agent's VecEnv
+        self.corrected = self.steps = 0  # Algorithm 1's corrected steps / collected steps since the last log
+
+    def _on_training_start(self) -> None:
+        if len(self.held) != self.training_env.num_envs:
+            n_envs = self.training_env.num_envs
+            self.held, self.moved = np.zeros(n_envs, bool), np.zeros(n_envs, bool)
 
     def _on_step(self) -> bool:
-        for done, info in zip(self.locals["dones"], self.locals["infos"]):
-            self.held |= bool(info["held"])
-            self.moved |= info["moved_m"] > self.moved_m
+        dones, infos = self.locals["dones"], self.locals["infos"]
+        for i, (done, info) in enumerate(zip(dones, infos)):
+            self.held[i] |= bool(info["held"])
+            self.moved[i] |= info["moved_m"] > self.moved_m
+            self.corrected += bool(info.get("corrected", False))
+            self.steps += 1
             if done:
                 self.episodes.append({"success_rate": bool(info["is_success"]),
                                       "collision_rate": bool(info["collided"]),
-                                      "grip_rate": self.held, "moved_rate": self.moved,
+                                      "grip_rate": bool(self.held[i]), "moved_rate": bool(self.moved[i]),
                                       "final_distance": float(np.max(info["goal_distances"]))})
-                self.held = self.moved = False
+                self.held[i] = self.moved[i] = False
         if len(self.episodes) >= self.every:
             metrics = {f"{self.prefix}{key}": float(np.mean([episode[key] for episode in self.episodes]))
                        for key in self.episodes[0]}
-            if isinstance(self.model, GuidedDDPG):
-                metrics[f"{self.prefix}guidance_rate"] = self.model.guidance_rate
-            horizon = self.model.get_env().envs[0].unwrapped.horizon
-            self.log(metrics, step=self.model.num_timesteps // horizon)
-            self.episodes = []
+            metrics[f"{self.prefix}guidance_rate"] = self.corrected / max(1, self.steps)
+            self.log(metrics, step=self.model.num_timesteps // episode_horizon(self.model))
+            self.episodes, self.corrected, self.steps = [], 0, 0
         return True
 
 
@@ -155,8 +179,8 @@ class EpisodeProgress(BaseCallback):
         self.bar: tqdm | None = None
 
     def _on_training_start(self) -> None:
-        horizon = self.model.get_env().envs[0].unwrapped.horizon
-        self.bar = tqdm(total=self.total, initial=self.num_timesteps // horizon, desc=self.desc, unit="episode")
+        self.bar = tqdm(total=self.total, initial=self.num_timesteps // episode_horizon(self.model), desc=self.desc,
+                        unit="episode")
 
     def _on_step(self) -> bool:
         self.bar.update(int(sum(self.locals["dones"])))
@@ -204,7 +228,7 @@ def learn_episodes(agent: HerDDPG, episodes: int, callback: BaseCallback | None 
     """Train until the agent has run ``episodes`` episodes in all (a resumed agent continues its count). Every
     episode of the goal env has ``horizon`` steps, so this is ``episodes x horizon`` control steps, and the last
     episode is stored and trained on like the others."""
-    horizon = agent.get_env().envs[0].unwrapped.horizon
+    horizon = episode_horizon(agent)
     remaining = episodes - agent.num_timesteps // horizon
     if remaining > 0:
         agent.learn(total_timesteps=remaining * horizon, callback=callback,
@@ -214,29 +238,32 @@ def learn_episodes(agent: HerDDPG, episodes: int, callback: BaseCallback | None 
 
 def add_demonstrations(agent: HerDDPG, env: HRCGoalEnv, episodes: int, seed: int = 0) -> float:
     """Put ``episodes`` episodes of the scripted expert (:class:`~hrc_lab.env.robot.expert.ScriptedExpert`) acting in
-    ``env`` into the agent's replay buffer, as the thesis' DRL baseline is "trained using demonstrations" (Table 4.3);
-    HER relabels them like the agent's own. Each episode runs the env's full horizon (the arm holds still with
-    suction off once the expert is done), so its transitions look like the agent's. The first scene is drawn with
-    ``seed``. Returns the share of demonstrations that ended in success."""
+    ``env`` into the agent's demonstration buffer, as the thesis' DRL baseline is "trained using demonstrations"
+    (Table 4.3; Nair et al. 2018, :mod:`hrc_lab.rl.ddpg`); HER relabels them like the agent's own. Each episode runs
+    the env's full horizon (the arm holds still, suction off, once the expert is done), so its transitions look
+    like the agent's; with ``rl.suction=auto`` the expert's suction commands are dropped and the env's release on
+    a support lets the part go. The first scene is drawn with ``seed``. Returns the share of demonstrations that
+    ended in success."""
     from hrc_lab.env.robot.expert import ScriptedExpert
 
-    if not env.suction_action:
-        raise ValueError("demonstrations switch the cup on and off: they need rl.suction=action, got auto")
+    if not (env.suction_action or env.release_on_support):
+        raise ValueError("demonstrations release the part at its goal: they need rl.suction=action, or "
+                         "rl.suction=auto with rl.release=support")
     still = np.zeros(env.action_space.shape[0], dtype=np.float32)
-    still[-1] = -1.0
+    if env.suction_action:
+        still[-1] = -1.0
     successes = []
     for k in range(episodes):
         obs, _ = env.reset(seed=seed if k == 0 else None)
         expert = ScriptedExpert(env.cell)
-        truncated, info = False, {}
+        truncated, info, episode = False, {}, []
         while not truncated:
             step = expert.act()
-            action = still if step is None else np.clip(step.action / env.action_scale, -1.0, 1.0).astype(np.float32)
+            action = still if step is None else env.from_cell_action(step.action)
             next_obs, reward, _, truncated, info = env.step(action)
-            agent.replay_buffer.add({k: v[None] for k, v in obs.items()}, {k: v[None] for k, v in next_obs.items()},
-                                    action[None], np.array([reward]), np.array([truncated]),
-                                    [{**info, "TimeLimit.truncated": truncated}])
+            episode.append((obs, next_obs, action, reward, info))
             obs = next_obs
+        agent.add_demonstration(episode)
         successes.append(bool(info["is_success"]))
     return float(np.mean(successes)) if successes else float("nan")
 
@@ -287,39 +314,50 @@ def _filled_bytes(buffer: Any) -> int:
     return total * buffer.size() // buffer.buffer_size
 
 
+def _dump(buffer: Any, path: pathlib.Path) -> None:
+    with gzip.open(path, "wb", compresslevel=1) as file:
+        pickle.dump(buffer, file, protocol=pickle.HIGHEST_PROTOCOL)
+
+
+def _load_buffer(path: pathlib.Path, agent: HerDDPG) -> HerReplayBuffer:
+    """A buffer saved by :func:`save_agent`, restored as ``OffPolicyAlgorithm.load_replay_buffer`` does (HER's
+    buffer gets the env back, an unfinished last episode is closed)."""
+    with gzip.open(path, "rb") as file:
+        buffer = pickle.load(file)
+    buffer.set_env(agent.get_env())
+    buffer.truncate_last_trajectory()
+    return buffer
+
+
 def save_agent(agent: HerDDPG, directory: str | pathlib.Path, replay_buffer: bool | None = None,
                max_buffer_bytes: int = MAX_BUFFER_BYTES) -> list[pathlib.Path]:
-    """Save ``agent`` into ``directory``: SB3's ``agent.zip`` (networks, optimisers, counters, and a
-    :class:`GuidedDDPG`'s guidance state), plus the replay buffer, pickled and gzipped (``replay_buffer.pkl.gz``;
-    HER's buffer leaves its env out), when ``replay_buffer`` is True, or when None and the stored transitions take
-    at most ``max_buffer_bytes``. Returns the files written, for ``mlflow.log_artifact``."""
+    """Save ``agent`` into ``directory``: SB3's ``agent.zip`` (networks, optimisers, counters, the normaliser's
+    statistics), the demonstration buffer when the agent has one (``demo_buffer.pkl.gz``), plus the replay buffer,
+    pickled and gzipped (``replay_buffer.pkl.gz``; HER's buffer leaves its env out), when ``replay_buffer`` is
+    True, or when None and the stored transitions take at most ``max_buffer_bytes``. Returns the files written,
+    for ``mlflow.log_artifact``."""
     directory = pathlib.Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     agent.save(directory / AGENT_FILE)
     written = [directory / AGENT_FILE]
+    if agent.demo_buffer is not None:
+        _dump(agent.demo_buffer, directory / DEMO_BUFFER_FILE)
+        written.append(directory / DEMO_BUFFER_FILE)
     if replay_buffer is None:
         replay_buffer = _filled_bytes(agent.replay_buffer) <= max_buffer_bytes
     if replay_buffer:
-        with gzip.open(directory / BUFFER_FILE, "wb", compresslevel=1) as file:
-            pickle.dump(agent.replay_buffer, file, protocol=pickle.HIGHEST_PROTOCOL)
+        _dump(agent.replay_buffer, directory / BUFFER_FILE)
         written.append(directory / BUFFER_FILE)
     return written
 
 
-def load_agent(directory: str | pathlib.Path, env: HRCGoalEnv, guide: Any = None) -> HerDDPG:
-    """The agent saved by :func:`save_agent`, on ``env``; a :class:`GuidedDDPG` when ``guide`` is given (the
-    guide is not saved). A saved replay buffer is restored as ``OffPolicyAlgorithm.load_replay_buffer`` does
-    (HER's buffer gets the env back, an unfinished last episode is closed), so :func:`learn_episodes` continues
-    where the saved run stopped."""
+def load_agent(directory: str | pathlib.Path, env: gym.Env | VecEnv) -> HerDDPG:
+    """The agent saved by :func:`save_agent`, on ``env``, with its saved buffers, so :func:`learn_episodes`
+    continues where the saved run stopped."""
     directory = pathlib.Path(directory)
-    cls = GuidedDDPG if guide is not None else HerDDPG
-    agent = cls.load(directory / AGENT_FILE, env=env, device="cpu")
-    if guide is not None:
-        agent.guide = guide
+    agent = HerDDPG.load(directory / AGENT_FILE, env=env, device="cpu")
+    if (directory / DEMO_BUFFER_FILE).exists():
+        agent.demo_buffer = _load_buffer(directory / DEMO_BUFFER_FILE, agent)
     if (directory / BUFFER_FILE).exists():
-        with gzip.open(directory / BUFFER_FILE, "rb") as file:
-            agent.replay_buffer = pickle.load(file)
-        if isinstance(agent.replay_buffer, HerReplayBuffer):
-            agent.replay_buffer.set_env(agent.get_env())
-            agent.replay_buffer.truncate_last_trajectory()
+        agent.replay_buffer = _load_buffer(directory / BUFFER_FILE, agent)
     return with_silent_logger(agent)

@@ -21,6 +21,8 @@ GUIDANCES = ("none", "ndp", "ndp_direction")
 SUCTIONS = ("action", "auto")
 STARTS = ("scene", "held")
 GOAL_STRATEGIES = ("future", "final", "episode")  # stable-baselines3's GoalSelectionStrategy values
+TARGET_UPDATES = ("cycle", "step")
+GUIDED_EPISODES = ("replay", "demos")
 
 
 @dataclass
@@ -38,6 +40,20 @@ class RLConfig:
     # scene: episodes start from the sampled scene (the thesis); held: the scripted expert has already picked the
     # goal object and lifted it, so an episode is the placing half alone (issue 19's diagnostic, not in the thesis)
     start: str = "scene"
+    # --- the task as 3.3 states it (hrc_lab.rl.goal_env's docstring); each default is the faithful reading ---
+    # the parts' rotational symmetry order about z: the achieved yaw, and every yaw error of the reward, is taken
+    # modulo 2 pi / order, so a 5 x 5 cm cuboid turned by 90 degrees scores as yaw 0 (4; capped at 2 for a part with
+    # a rectangular footprint). 1: the raw yaw (a quarter turn is 1.57 rad off). 1, 2 or 4
+    yaw_symmetry: int = 4
+    # relative: the action's wrist-3 dimension turns the tool relative to its yaw, i.e. 0 keeps the tool's (and a
+    # held part's) yaw while the base turns (wrist 3 gets action + HRCCell.wrist3_holding_yaw(dq_base)); absolute:
+    # the raw wrist-3 joint delta (a held part turns with the base unless the agent matches it). Needs
+    # env.sim.yaw_action
+    wrist3: str = "relative"
+    # rl.suction=auto only. support: the cup releases the held part once it was lifted (1 cm) and then touches one of
+    # its allowed supports (the table, or the part it stacks on), so the support, not the cup, sets its final height;
+    # off until the lip has left it, then on again (it can be picked again). never: the cup holds it to the end
+    release: str = "support"
     # --- DDPG (HER paper: Adam 1e-3, 3 x 256 ReLU layers, batch 256, gamma 0.98, polyak 0.95, 20 % Gaussian noise) ---
     learning_rate: float = 1e-3
     net_arch: list[int] = field(default_factory=lambda: [256, 256, 256])  # actor and critic hidden layers
@@ -59,10 +75,38 @@ class RLConfig:
     random_eps: float = 0.3
     clip_return: bool = True
     learning_starts: int = 1000  # random-action warm-up steps (not in the thesis; SB3 default is 100)
-    # Algorithm 1 collects an episode, then updates: train every ``train_freq`` episodes with ``gradient_steps``
-    # gradient steps (-1: as many as control steps were collected)
-    train_freq: int = 1
-    gradient_steps: int = -1
+    # --- the training loop (hrc_lab.rl.trainer), structured as the HER reference implementation (OpenAI baselines'
+    # her: an epoch is ``cycles_per_epoch`` cycles; a cycle collects ``episodes_per_cycle`` episodes, then runs
+    # ``gradient_steps`` gradient steps, then one soft target update; the normaliser's statistics follow the stored
+    # episodes). Reference values: 50 cycles, 2 episodes per worker, 40 gradient steps, polyak 0.95 per cycle ---
+    cycles_per_epoch: int = 50
+    episodes_per_cycle: int = 2  # over all ``n_envs`` environments: a multiple of n_envs
+    gradient_steps: int = 40  # per cycle
+    # cycle: one soft update of the target networks per cycle (the reference); step: after every gradient step
+    # (stable-baselines3's DDPG, whose targets then move ``gradient_steps`` times faster)
+    target_update: str = "cycle"
+    # environments stepped in parallel (stable-baselines3's SubprocVecEnv when > 1, one process each), so a job
+    # uses every core it is given
+    n_envs: int = 1
+    # --- demonstrations (Nair et al. 2018, the reference's ``bc_loss`` / ``q_filter``): a second buffer of
+    # demonstration episodes, HER-relabelled like the agent's own; every batch holds ``demo_batch_size`` of them, and
+    # the actor also minimises ``bc_weight`` x the squared error to their actions (summed over the demonstration
+    # samples, the reference's aux/prm loss weights 0.0078 / 0.001), only where the critic rates the demonstrated
+    # action above the policy's (``q_filter``). No demonstration buffer without demonstrations ---
+    demo_batch_size: int = 32  # of rl.batch_size 256: Nair et al.'s share (128 of 1024)
+    bc_weight: float = 7.8
+    q_filter: bool = True
+    # Before its first update with demonstrations, the actor clones them for ``bc_pretrain_steps`` batches (a
+    # pure behaviour-cloning start) and the critic alone then learns that policy's values for
+    # ``critic_warmup_steps`` gradient steps before the actor follows it. Without them the Q-filter of an untrained
+    # critic passed 5-8 % of the demonstration samples and the actor lost the demonstrated behaviour within 50
+    # episodes (issue 43); Nair et al. start from scratch. 0 / 0: their method as written
+    bc_pretrain_steps: int = 5000
+    critic_warmup_steps: int = 2000
+    # Algorithm 1 "stores expert transition" for guided episodes: ``replay`` stores them in the one replay buffer
+    # like the agent's own (the thesis' reading: one buffer R); ``demos`` also puts each guided episode into the
+    # demonstration buffer, so the guide's corrected actions are cloned under the Q-filter
+    guided_episodes: str = "replay"
     # --- HER (ref. [19]: k = 4 goals per transition, "future" strategy) ---
     n_sampled_goal: int = 4
     goal_selection_strategy: str = "future"
@@ -76,8 +120,8 @@ class RLConfig:
     subgoal_tolerance: float = 0.008
 
     def __post_init__(self) -> None:
-        for key in ("steps_per_subtask", "batch_size", "buffer_size", "train_freq", "n_sampled_goal",
-                    "subgoal_steps"):
+        for key in ("steps_per_subtask", "batch_size", "buffer_size", "n_sampled_goal", "subgoal_steps",
+                    "cycles_per_epoch", "episodes_per_cycle", "gradient_steps", "n_envs"):
             if getattr(self, key) < 1:
                 raise ValueError(f"rl.{key} must be >= 1, got {getattr(self, key)}")
         for key in ("learning_rate", "action_noise_std", "delta_g", "subgoal_tolerance"):
@@ -98,9 +142,21 @@ class RLConfig:
             raise ValueError(f"rl.random_eps must be in [0, 1], got {self.random_eps}")
         if self.learning_starts < 0:
             raise ValueError(f"rl.learning_starts must be >= 0, got {self.learning_starts}")
-        if self.gradient_steps == 0 or self.gradient_steps < -1:
-            raise ValueError(f"rl.gradient_steps must be >= 1 or -1 (one per collected step), "
-                             f"got {self.gradient_steps}")
+        if self.episodes_per_cycle % self.n_envs:
+            raise ValueError(f"rl.episodes_per_cycle must be a multiple of rl.n_envs={self.n_envs} (each environment "
+                             f"runs the same number of episodes per cycle), got {self.episodes_per_cycle}")
+        if self.target_update not in TARGET_UPDATES:
+            raise ValueError(f"rl.target_update must be one of {list(TARGET_UPDATES)}, got '{self.target_update}'")
+        if not 0 <= self.demo_batch_size < self.batch_size:
+            raise ValueError(f"rl.demo_batch_size must be in [0, rl.batch_size={self.batch_size}), "
+                             f"got {self.demo_batch_size}")
+        if self.bc_pretrain_steps < 0 or self.critic_warmup_steps < 0:
+            raise ValueError(f"rl.bc_pretrain_steps and rl.critic_warmup_steps must be >= 0, got "
+                             f"{self.bc_pretrain_steps} and {self.critic_warmup_steps}")
+        if self.bc_weight < 0:
+            raise ValueError(f"rl.bc_weight must be >= 0, got {self.bc_weight}")
+        if self.guided_episodes not in GUIDED_EPISODES:
+            raise ValueError(f"rl.guided_episodes must be one of {list(GUIDED_EPISODES)}, got '{self.guided_episodes}'")
         if self.goal_selection_strategy not in GOAL_STRATEGIES:
             raise ValueError(f"rl.goal_selection_strategy must be one of {list(GOAL_STRATEGIES)}, "
                              f"got '{self.goal_selection_strategy}'")
@@ -108,6 +164,13 @@ class RLConfig:
             raise ValueError(f"rl.suction must be one of {list(SUCTIONS)}, got '{self.suction}'")
         if self.start not in STARTS:
             raise ValueError(f"rl.start must be one of {list(STARTS)}, got '{self.start}'")
+        if self.yaw_symmetry not in (1, 2, 4):
+            raise ValueError(f"rl.yaw_symmetry must be 1, 2 or 4 (the part's rotational symmetry order about z), "
+                             f"got {self.yaw_symmetry}")
+        if self.wrist3 not in ("relative", "absolute"):
+            raise ValueError(f"rl.wrist3 must be one of ['relative', 'absolute'], got '{self.wrist3}'")
+        if self.release not in ("support", "never"):
+            raise ValueError(f"rl.release must be one of ['support', 'never'], got '{self.release}'")
         if self.guidance not in GUIDANCES:
             raise ValueError(f"rl.guidance must be one of {list(GUIDANCES)}, got '{self.guidance}'")
         if not 0 <= self.lam <= 1:

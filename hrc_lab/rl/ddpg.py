@@ -1,7 +1,7 @@
-"""stable-baselines3's DDPG with the three details of the HER paper's DDPG that it lacks.
+"""stable-baselines3's DDPG as the HER reference implementation trains it, with demonstrations.
 
 The HER paper's agent (Andrychowicz et al. 2017, ref. [19]; its code: OpenAI baselines' ``her``, Plappert et al.
-2018) differs from a textbook DDPG in three places the thesis inherits by adopting "the standard DDPG with HER
+2018) differs from a textbook DDPG in places the thesis inherits by adopting "the standard DDPG with HER
 architecture" (3.3):
 
 - **action penalty**: the actor minimises ``-Q(s, pi(s)) + action_l2 * mean(pi(s)^2)`` over the [-1, 1] actions
@@ -9,12 +9,26 @@ architecture" (3.3):
 - **random actions**: an exploration step is, with probability ``random_eps`` (0.3), an action drawn uniformly
   from the action space instead of the noisy policy's;
 - **clipped targets**: with rewards in {-1, 0}, every return lies in [-1 / (1 - gamma), 0], so the critic's
-  target ``r + gamma * Q'(s', pi'(s'))`` is clipped to it (``clip_return``).
+  target ``r + gamma * Q'(s', pi'(s'))`` is clipped to it (``clip_return``);
+- **one target update per cycle** (``target_update="cycle"``): the soft update with ``tau`` runs once after a
+  cycle's gradient steps, not after each;
+- **normaliser statistics from the stored episodes** (:meth:`HerDDPG.update_input_statistics`, before each cycle's
+  gradient steps), not from the batches.
 
-:class:`HerDDPG` adds them to stable-baselines3's ``DDPG`` (``_sample_action`` for the random actions, ``train``
-for the other two; ``train`` is SB3 2.x's ``TD3.train`` with the two changes marked). With ``action_l2 = 0``,
-``random_eps = 0`` and ``clip_return = False`` (the constructor's defaults, so checkpoints saved by a plain DDPG
-load unchanged) it is SB3's DDPG.
+Demonstrations (Nair et al. 2018, the reference's ``bc_loss`` / ``q_filter``): :meth:`HerDDPG.add_demonstration`
+stores whole episodes in a second HER buffer (``demo_buffer``); each batch then takes ``demo_batch_size`` samples
+from it, and the actor's loss gains ``bc_weight * sum((pi(s) - a)^2)`` over the demonstration samples whose
+demonstrated action the critic rates above the policy's (``q_filter``). Before the first update with
+demonstrations the actor clones them alone for ``bc_pretrain_steps`` batches, and the critic then learns for
+``critic_warmup_steps`` gradient steps before the actor follows it (an untrained critic's Q-filter rejects most
+demonstrations and undoes the cloning).
+
+Executed actions: when an env wrapper replaced the policy's action (Algorithm 1's guidance,
+:class:`~hrc_lab.rl.guidance.GuidedEnv`), ``info["executed_action"]`` is what the replay buffer stores. With
+``guided_episodes="demos"`` the guided episodes also enter the demonstration buffer.
+
+With the constructor's defaults (no penalty, no random actions, no clipping, targets per step, no demonstrations)
+it is SB3's DDPG.
 """
 
 from __future__ import annotations
@@ -22,19 +36,46 @@ from __future__ import annotations
 import numpy as np
 import torch as th
 import torch.nn.functional as F
-from stable_baselines3 import DDPG
+from stable_baselines3 import DDPG, HerReplayBuffer
+from stable_baselines3.common.type_aliases import DictReplayBufferSamples
 from stable_baselines3.common.utils import polyak_update
+
+from hrc_lab.rl.normalization import update_normalizers
+
+
+def concatenate(a: DictReplayBufferSamples, b: DictReplayBufferSamples) -> DictReplayBufferSamples:
+    """Two batches of HER samples as one (``a``'s rows first)."""
+    return DictReplayBufferSamples(
+        observations={key: th.cat((a.observations[key], b.observations[key])) for key in a.observations},
+        actions=th.cat((a.actions, b.actions)),
+        next_observations={key: th.cat((a.next_observations[key], b.next_observations[key]))
+                           for key in a.next_observations},
+        dones=th.cat((a.dones, b.dones)),
+        rewards=th.cat((a.rewards, b.rewards)),
+    )
 
 
 class HerDDPG(DDPG):
-    """DDPG with the HER paper's action penalty, random exploration actions and clipped critic targets (module
+    """DDPG as the HER reference implementation trains it, with an optional demonstration buffer (module
     docstring)."""
 
     def __init__(self, *args, action_l2: float = 0.0, random_eps: float = 0.0, clip_return: bool = False,
-                 **kwargs) -> None:
+                 target_update: str = "step", demo_batch_size: int = 0, bc_weight: float = 0.0,
+                 q_filter: bool = True, bc_pretrain_steps: int = 0, critic_warmup_steps: int = 0,
+                 guided_episodes: str = "replay", **kwargs) -> None:
         # validated with the rl config (hrc_lab.rl.configs.RLConfig), which is what builds every agent
         self.action_l2, self.random_eps, self.clip_return = action_l2, random_eps, clip_return
+        self.target_update = target_update
+        self.demo_batch_size, self.bc_weight, self.q_filter = demo_batch_size, bc_weight, q_filter
+        self.bc_pretrain_steps, self.critic_warmup_steps = bc_pretrain_steps, critic_warmup_steps
+        self.critic_warmup_until: int | None = None  # the update count until which only the critic learns
+        self.guided_episodes = guided_episodes
+        self.demo_buffer: HerReplayBuffer | None = None
+        self._open_demos: dict[int, list[tuple]] = {}  # env index -> the guided episode being collected
+        self._statistics_upto = 0  # transitions of the replay buffer already in the normaliser's statistics
         super().__init__(*args, **kwargs)
+
+    # --- exploration and storage --------------------------------------------------------------------------------
 
     def _sample_action(self, learning_starts: int, action_noise=None, n_envs: int = 1) -> tuple[np.ndarray, np.ndarray]:
         action, buffer_action = super()._sample_action(learning_starts, action_noise, n_envs)
@@ -45,49 +86,151 @@ class HerDDPG(DDPG):
             action = self.policy.unscale_action(buffer_action)
         return action, buffer_action
 
+    def _store_transition(self, replay_buffer, buffer_action, new_obs, reward, dones, infos) -> None:
+        executed = [info.get("executed_action") for info in infos]
+        if any(a is not None for a in executed):  # a wrapper acted instead of the policy: store what it executed
+            buffer_action = np.array([buffer_action[i] if a is None else a for i, a in enumerate(executed)],
+                                     dtype=buffer_action.dtype)
+        if self.guided_episodes == "demos":
+            self._collect_guided(buffer_action, new_obs, reward, dones, infos)
+        super()._store_transition(replay_buffer, buffer_action, new_obs, reward, dones, infos)
+
+    def _collect_guided(self, buffer_action, new_obs, reward, dones, infos) -> None:
+        """Keep each env's guided episode, transition by transition, and move it into the demonstration buffer
+        when it ends."""
+        for i, info in enumerate(infos):
+            if not info.get("guided"):
+                continue
+            terminal = info.get("terminal_observation") if dones[i] else None  # the VecEnv has already reset
+            next_obs = {key: new_obs[key][i] if terminal is None else terminal[key] for key in new_obs}
+            obs = {key: self._last_obs[key][i] for key in self._last_obs}
+            self._open_demos.setdefault(i, []).append((obs, next_obs, buffer_action[i], float(reward[i]), info))
+            if dones[i]:
+                self.add_demonstration(self._open_demos.pop(i))
+
+    def add_demonstration(self, episode: list[tuple]) -> None:
+        """Store one episode of ``(obs, next_obs, action in [-1, 1], reward, info)`` transitions in the
+        demonstration buffer (made on first use, as large as the replay buffer) and its inputs in the normaliser's
+        statistics."""
+        if self.demo_buffer is None:
+            self.demo_buffer = HerReplayBuffer(
+                self.buffer_size, self.observation_space, self.action_space, env=self.env, device="cpu", n_envs=1,
+                **self.replay_buffer_kwargs)
+        for k, (obs, next_obs, action, reward, info) in enumerate(episode):
+            last = k == len(episode) - 1
+            self.demo_buffer.add({key: v[None] for key, v in obs.items()},
+                                 {key: v[None] for key, v in next_obs.items()}, np.asarray(action)[None],
+                                 np.array([reward]), np.array([last]), [{**info, "TimeLimit.truncated": last}])
+        rows = {key: np.stack([t[0][key] for t in episode]) for key in episode[0][0]}
+        self._add_statistics(rows)
+
+    # --- input statistics ---------------------------------------------------------------------------------------
+
+    def _add_statistics(self, rows: dict[str, np.ndarray]) -> None:
+        """Observation and goal rows into the normaliser's statistics; the desired goals as HER samples them:
+        ``her_ratio`` of them are achieved goals of the same episodes ("future" relabelling), the rest the
+        original desired goals."""
+        relabelled = max(1, round(self.replay_buffer.her_ratio / max(1e-9, 1 - self.replay_buffer.her_ratio)))
+        desired = np.concatenate([rows["desired_goal"], *[rows["achieved_goal"]] * relabelled])
+        update_normalizers(self.policy, {**rows, "desired_goal": desired})
+
+    def update_input_statistics(self) -> None:
+        """Add the transitions stored since the last call (every env's) to the normaliser's statistics."""
+        buffer = self.replay_buffer
+        stored = self.num_timesteps // buffer.n_envs  # rows written so far (one per env per step)
+        if stored <= self._statistics_upto:
+            return
+        rows = np.arange(self._statistics_upto, stored)[-buffer.buffer_size:] % buffer.buffer_size
+        self._add_statistics({key: value[rows].reshape(-1, value.shape[-1])
+                              for key, value in buffer.observations.items()})
+        self._statistics_upto = stored
+
+    # --- training -----------------------------------------------------------------------------------------------
+
+    def _sample(self, batch_size: int) -> tuple[DictReplayBufferSamples, int]:
+        """A batch: ``demo_batch_size`` demonstration samples first when there are demonstrations, the rest from
+        the replay buffer; and how many of its rows are demonstrations."""
+        n_demo = self.demo_batch_size if self.demo_buffer is not None and self.demo_buffer.size() > 0 else 0
+        replay = self.replay_buffer.sample(batch_size - n_demo, env=self._vec_normalize_env)
+        if not n_demo:
+            return replay, 0
+        return concatenate(self.demo_buffer.sample(n_demo, env=self._vec_normalize_env), replay), n_demo
+
+    def _actor_loss(self, data: DictReplayBufferSamples, n_demo: int) -> th.Tensor:
+        actions = self.actor(data.observations)
+        q_pi = self.critic.q1_forward(data.observations, actions)
+        loss = -q_pi.mean()
+        if self.action_l2 > 0:  # HER paper: the action penalty on the [-1, 1] actions
+            loss = loss + self.action_l2 * actions.pow(2).mean()
+        if n_demo and self.bc_weight > 0:  # Nair et al.: behaviour cloning on the demonstrations, Q-filtered
+            error = (actions[:n_demo] - data.actions[:n_demo]).pow(2).sum(dim=1, keepdim=True)
+            if self.q_filter:
+                with th.no_grad():
+                    better = self.critic.q1_forward(
+                        {key: v[:n_demo] for key, v in data.observations.items()}, data.actions[:n_demo])
+                    error = error * (better > q_pi[:n_demo].detach()).float()
+            loss = loss + self.bc_weight * error.sum()
+        return loss
+
+    def pretrain_on_demonstrations(self, batch_size: int) -> None:
+        """Behaviour cloning alone: ``bc_pretrain_steps`` batches of demonstrations (HER-relabelled goals, as in
+        training), the actor's squared error to their actions; then the target actor copies the actor, and the
+        critic alone learns for the next ``critic_warmup_steps`` gradient steps."""
+        for _ in range(self.bc_pretrain_steps):
+            data = self.demo_buffer.sample(batch_size, env=self._vec_normalize_env)
+            loss = (self.actor(data.observations) - data.actions).pow(2).sum(dim=1).mean()
+            self.actor.optimizer.zero_grad()
+            loss.backward()
+            self.actor.optimizer.step()
+        polyak_update(self.actor.parameters(), self.actor_target.parameters(), 1.0)
+        self.critic_warmup_until = self._n_updates + self.critic_warmup_steps
+
+    def _update_targets(self) -> None:
+        polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
+        polyak_update(self.actor.parameters(), self.actor_target.parameters(), self.tau)
+        polyak_update(self.critic_batch_norm_stats, self.critic_batch_norm_stats_target, 1.0)
+        polyak_update(self.actor_batch_norm_stats, self.actor_batch_norm_stats_target, 1.0)
+
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
+        """One cycle's gradient steps (SB3 2.x's ``TD3.train`` with the changes of the module docstring)."""
         self.policy.set_training_mode(True)
+        self.update_input_statistics()
         self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
         return_bounds = (-1.0 / (1.0 - self.gamma), 0.0) if self.clip_return and self.gamma < 1 else None
+        if self.critic_warmup_until is None and self.demo_buffer is not None and self.demo_buffer.size():
+            self.pretrain_on_demonstrations(batch_size)
         actor_losses, critic_losses = [], []
         for _ in range(gradient_steps):
             self._n_updates += 1
-            replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
-            discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
-
+            data, n_demo = self._sample(batch_size)
             with th.no_grad():
-                noise = replay_data.actions.clone().data.normal_(0, self.target_policy_noise)
-                noise = noise.clamp(-self.target_noise_clip, self.target_noise_clip)
-                next_actions = (self.actor_target(replay_data.next_observations) + noise).clamp(-1, 1)
-                next_q_values = th.cat(self.critic_target(replay_data.next_observations, next_actions), dim=1)
-                next_q_values, _ = th.min(next_q_values, dim=1, keepdim=True)
-                target_q_values = replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_values
+                next_q = th.cat(self.critic_target(data.next_observations,
+                                                   self.actor_target(data.next_observations)), dim=1)
+                next_q, _ = th.min(next_q, dim=1, keepdim=True)
+                target_q = data.rewards + (1 - data.dones) * self.gamma * next_q
                 if return_bounds is not None:  # HER paper: returns of {-1, 0} rewards lie in [-1 / (1 - gamma), 0]
-                    target_q_values = target_q_values.clamp(*return_bounds)
-
-            current_q_values = self.critic(replay_data.observations, replay_data.actions)
-            critic_loss = sum(F.mse_loss(current_q, target_q_values) for current_q in current_q_values)
+                    target_q = target_q.clamp(*return_bounds)
+            critic_loss = sum(F.mse_loss(q, target_q) for q in self.critic(data.observations, data.actions))
             critic_losses.append(critic_loss.item())
             self.critic.optimizer.zero_grad()
             critic_loss.backward()
             self.critic.optimizer.step()
 
-            if self._n_updates % self.policy_delay == 0:
-                actions = self.actor(replay_data.observations)
-                actor_loss = -self.critic.q1_forward(replay_data.observations, actions).mean()
-                if self.action_l2 > 0:  # HER paper: the action penalty on the [-1, 1] actions
-                    actor_loss = actor_loss + self.action_l2 * actions.pow(2).mean()
+            if self.critic_warmup_until is None or self._n_updates > self.critic_warmup_until:
+                actor_loss = self._actor_loss(data, n_demo)
                 actor_losses.append(actor_loss.item())
                 self.actor.optimizer.zero_grad()
                 actor_loss.backward()
                 self.actor.optimizer.step()
-
-                polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
-                polyak_update(self.actor.parameters(), self.actor_target.parameters(), self.tau)
-                polyak_update(self.critic_batch_norm_stats, self.critic_batch_norm_stats_target, 1.0)
-                polyak_update(self.actor_batch_norm_stats, self.actor_batch_norm_stats_target, 1.0)
-
+            if self.target_update == "step":
+                self._update_targets()
+        if self.target_update == "cycle" and gradient_steps:
+            self._update_targets()
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         if actor_losses:
             self.logger.record("train/actor_loss", np.mean(actor_losses))
-        self.logger.record("train/critic_loss", np.mean(critic_losses))
+        if critic_losses:
+            self.logger.record("train/critic_loss", np.mean(critic_losses))
+
+    def _excluded_save_params(self) -> list[str]:
+        return [*super()._excluded_save_params(), "demo_buffer", "_open_demos"]

@@ -6,7 +6,8 @@ Observation (a ``Dict`` space, the layout HER relabels):
   pose [x, y, z, yaw] (4 m), and 1.0 when the cup holds an object; the goal is not repeated here, so a relabelled
   ``desired_goal`` is the only goal the policy sees;
 - ``achieved_goal``: the goal objects' poses, [x, y, z, yaw] each for error correction (3.3: P_obj = [x_obj,
-  y_obj, z_obj, psi_yaw]), [x, y, z] of all m products for package-to-order (4.4.3);
+  y_obj, z_obj, psi_yaw]), [x, y, z] of all m products for package-to-order (4.4.3). The yaw is taken under the
+  part's rotational symmetry about z (``yaw_symmetry``, below);
 - ``desired_goal``: error correction, P_goal = [x_goal, y_goal, z_goal, 0] of the object the task label names
   (blue for labels 0/1, red for 2/3); package-to-order, the selected products' slots and every other product's
   own position ("the rest objects' positions remain the same").
@@ -16,11 +17,39 @@ Reward, Eq. 3.6 / 4.7, on single goals or batches (``compute_reward`` recomputes
     R = 0   if |P_obj - P_goal| <= delta_r for every goal object
        -1   otherwise
 
+Yaw under the part's symmetry (``yaw_symmetry`` n, ``rl.yaw_symmetry``; default 4): a 5 x 5 cm cuboid
+(correction_cell.HALF, a square footprint) turned by 90 degrees is the same part in the same place, so the achieved
+yaw is psi modulo 2 pi / n, wrapped to [-pi / n, pi / n), and every yaw error (the reward's, ``goal_distances``',
+and those of HER's relabelled goals, which are wrapped achieved yaws) is wrapped the same way. It is done where
+the achieved goals are made (``_achieved``), so the stored goals and ``compute_reward`` agree. Each goal object's
+order is gcd(n, its footprint's own order): 4 for a square footprint, 2 for a rectangle (half sizes x != y), so a
+rectangular part gets order 2 from n = 4 without a config of its own. n = 1: the raw yaw and raw differences (the
+behaviour before the switch: a square part turned by 90 degrees is 1.57 rad off). Only error correction has a yaw
+in its goals; package-to-order's [x, y, z] goals ignore the key.
+
 Action: the cell's ``[dq_base, dq_shoulder, dq_elbow, (dq_wrist3), suction]`` scaled to [-1, 1]: joint deltas in
 units of ``max_joint_step`` (5 degrees), suction on when > 0 (``suction="action"``). With ``suction="auto"`` the
-action is the joint deltas only, as 3.3's ``[q'_base, q'_shoulder, q'_elbow, q'_wrist3]``: the cup is always on,
-so it grips the part whose top face it touches and holds it to the episode's end (until a collision disables it);
-Eq. 3.6 scores the part's pose, held or not.
+action is the joint deltas only, as 3.3's ``[q'_base, q'_shoulder, q'_elbow, q'_wrist3]``: the cup is on, so it
+grips the part whose top face it touches; Eq. 3.6 scores the part's pose, held or not.
+
+Wrist 3 (``wrist3``, ``rl.wrist3``; only with the cell's ``yaw_action``): with the tool pointing down the tool's
+yaw is q_base - q_wrist3 + const, so with ``"absolute"`` a held part turns with every base step unless the agent
+matches it on wrist 3. ``"relative"`` (default) remaps the same action set one to one: the wrist-3 delta sent to the
+cell is a_wrist3 * max_joint_step + ``HRCCell.wrist3_holding_yaw(dq_base)``, clipped to +-max_joint_step, so
+a_wrist3 = 0 keeps the tool's (and a held part's) yaw while the base turns, and a_wrist3 turns the tool relative to
+that (its yaw changes by -a_wrist3 * max_joint_step). :meth:`HRCGoalEnv.hold_yaw_action` is the action-space
+wrist-3 value that holds the yaw in either mode (0 in ``"relative"``), :meth:`HRCGoalEnv.from_cell_action` the
+inverse of :meth:`HRCGoalEnv.to_cell_action` (a scripted expert's cell action as this env's action).
+
+Release on a support (``release``, ``rl.release``; ``suction="auto"`` only, with ``"action"`` the agent switches the
+cup): with ``"never"`` the cup holds what it gripped to the episode's end (until a collision disables it), so the
+cup, not the table, sets a placed part's final height. With ``"support"`` (default) the env releases the held part
+once it has been lifted off its start support (its centre ``LIFT_M`` = 1 cm above where it was when gripped) and
+then touches one of its allowed supports (``HRCCell.allowed_supports``: the table, or the part it stacks on;
+MuJoCo's contact list at the end of a control step): the cup is then commanded off until the lip has left the part's
+top face (``Suction.touching`` is -1 at the end of a step), and on again after that, so the part can be picked
+again (a fresh grip needs a fresh 1 cm lift before it is released again) and a whole-plan episode can pick the
+next part.
 
 ``start="held"`` (a diagnostic, not the thesis' setting): each error-correction episode starts once the scripted
 expert has picked the goal object and lifted it to transit height, so the agent learns the placing half alone.
@@ -37,6 +66,7 @@ episode goes on).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import gymnasium as gym
@@ -48,14 +78,38 @@ from hrc_lab.env.robot.correction_cell import ErrorCorrection
 from hrc_lab.env.robot.package_cell import PackageToOrder
 from hrc_lab.rl.configs import STARTS, SUCTIONS
 
+YAW_SYMMETRIES = (1, 2, 4)  # rl.yaw_symmetry: the subgroups of a square's rotations about z
+WRIST3_MODES = ("relative", "absolute")  # rl.wrist3
+RELEASES = ("support", "never")  # rl.release
+LIFT_M = 0.01  # rl.release=support: a held part counts as lifted once its centre is this far above its grip height
 
-def sparse_reward(achieved_goal: np.ndarray, desired_goal: np.ndarray, delta_r: float,
-                  dims_per_object: int) -> np.ndarray:
-    """Eq. 3.6 / 4.7 on goals of shape ``(..., k * dims_per_object)``: 0.0 where every one of the k objects is
-    within ``delta_r`` (Euclidean, over its ``dims_per_object`` coordinates) of its goal, else -1.0; shape
-    ``(...)`` (a 0-d array for one goal), float32."""
+
+def wrap_yaw(yaw: np.ndarray, order: np.ndarray | int) -> np.ndarray:
+    """``yaw`` modulo 2 pi / ``order``, in [-pi / order, pi / order) (elementwise, ``order`` broadcast); order 1
+    leaves the yaw as it is (no wrapping at all: the behaviour before ``rl.yaw_symmetry``)."""
+    yaw, order = np.asarray(yaw, dtype=float), np.asarray(order)
+    period = 2 * np.pi / order
+    return np.where(order > 1, np.mod(yaw + period / 2, period) - period / 2, yaw)
+
+
+def goal_differences(achieved_goal: np.ndarray, desired_goal: np.ndarray, dims_per_object: int,
+                     yaw_orders: np.ndarray | None = None) -> np.ndarray:
+    """P_obj - P_goal per object, shape ``(..., k, dims_per_object)``; with ``yaw_orders`` (one symmetry order per
+    object) the last coordinate is a yaw and its difference is wrapped by :func:`wrap_yaw`."""
     achieved, desired = np.asarray(achieved_goal, dtype=float), np.asarray(desired_goal, dtype=float)
     difference = (achieved - desired).reshape(*achieved.shape[:-1], -1, dims_per_object)
+    if yaw_orders is not None:
+        difference[..., -1] = wrap_yaw(difference[..., -1], yaw_orders)
+    return difference
+
+
+def sparse_reward(achieved_goal: np.ndarray, desired_goal: np.ndarray, delta_r: float,
+                  dims_per_object: int, yaw_orders: np.ndarray | None = None) -> np.ndarray:
+    """Eq. 3.6 / 4.7 on goals of shape ``(..., k * dims_per_object)``: 0.0 where every one of the k objects is
+    within ``delta_r`` (Euclidean, over its ``dims_per_object`` coordinates) of its goal, else -1.0; shape
+    ``(...)`` (a 0-d array for one goal), float32. ``yaw_orders``: the k objects' yaw symmetry orders (the last
+    coordinate is then a yaw whose error is taken modulo 2 pi / order); None: no yaw wrapping."""
+    difference = goal_differences(achieved_goal, desired_goal, dims_per_object, yaw_orders)
     within = np.all(np.linalg.norm(difference, axis=-1) <= delta_r, axis=-1)
     return np.where(within, 0.0, -1.0).astype(np.float32)
 
@@ -68,7 +122,8 @@ class HRCGoalEnv(gym.Env):
 
     def __init__(self, cell: HRCCell, subtask: int | None = 0, steps_per_subtask: int = 40,
                  delta_r: float | None = None, disable_effector_on_collision: bool = True,
-                 cases: tuple[int, ...] = (), suction: str = "action", start: str = "scene") -> None:
+                 cases: tuple[int, ...] = (), suction: str = "action", start: str = "scene",
+                 yaw_symmetry: int = 4, wrist3: str = "relative", release: str = "support") -> None:
         if not isinstance(cell, ErrorCorrection | PackageToOrder):
             raise TypeError(f"HRCGoalEnv wraps ErrorCorrection or PackageToOrder cells, got {type(cell).__name__}")
         if steps_per_subtask < 1:
@@ -84,7 +139,19 @@ class HRCGoalEnv(gym.Env):
             raise ValueError(f"rl.start must be one of {list(STARTS)}, got '{start}'")
         if start == "held" and not isinstance(cell, ErrorCorrection):
             raise ValueError("rl.start=held: episodes start with the part picked in error correction only")
+        if yaw_symmetry not in YAW_SYMMETRIES:
+            raise ValueError(f"rl.yaw_symmetry must be one of {list(YAW_SYMMETRIES)}, got {yaw_symmetry}")
+        if wrist3 not in WRIST3_MODES:
+            raise ValueError(f"rl.wrist3 must be one of {list(WRIST3_MODES)}, got '{wrist3}'")
+        if release not in RELEASES:
+            raise ValueError(f"rl.release must be one of {list(RELEASES)}, got '{release}'")
         self.cell = cell
+        self.yaw_symmetry = int(yaw_symmetry)
+        self.wrist3_relative = wrist3 == "relative"
+        self.release_on_support = release == "support" and suction == "auto"
+        self.yaw_orders = np.zeros(0, dtype=int)
+        self._cup_off = False  # rl.release=support: the cup released a part and stays off until the lip left it
+        self._grip, self._grip_z, self._lifted = -1, 0.0, False
         self.cases = tuple(cases)
         self.suction_action = suction == "action"
         self.start = start
@@ -125,7 +192,10 @@ class HRCGoalEnv(gym.Env):
         return self._obs(), {}
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        rest_z = self.cell.object_positions()[:, 2] if self.release_on_support else None
         self.cell.step(self.to_cell_action(action))
+        if self.release_on_support:
+            self._release_on_support(rest_z)
         self.elapsed_steps += 1
         obs = self._obs()
         reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], {}))
@@ -144,8 +214,9 @@ class HRCGoalEnv(gym.Env):
         return obs, reward, False, truncated, info
 
     def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
-        """Eq. 3.6 / 4.7 (:func:`sparse_reward`) on one goal or a batch; ``info`` is unused."""
-        return sparse_reward(achieved_goal, desired_goal, self.delta_r, self.dims_per_object)
+        """Eq. 3.6 / 4.7 (:func:`sparse_reward`) on one goal or a batch, yaw errors under the goal objects'
+        symmetry (``yaw_orders``); ``info`` is unused."""
+        return sparse_reward(achieved_goal, desired_goal, self.delta_r, self.dims_per_object, self._yaw_orders())
 
     def close(self) -> None:
         self.cell.close()
@@ -157,9 +228,39 @@ class HRCGoalEnv(gym.Env):
         return float(self.cell.max_joint_step)
 
     def to_cell_action(self, action: np.ndarray) -> np.ndarray:
-        """The cell's action (radians, suction command) for an action in [-1, 1] (the cup on with ``auto``)."""
+        """The cell's action (radians, suction command) for an action in [-1, 1]: with ``wrist3="relative"`` the
+        wrist-3 delta is the action's plus the one holding the yaw while the base turns (clipped to the cell's max
+        joint step); with ``suction="auto"`` the cup is on, or off after a release on a support (module docstring)."""
         scaled = np.clip(np.asarray(action, dtype=float), -1.0, 1.0) * self.action_scale
-        return scaled if self.suction_action else np.append(scaled, 1.0)
+        if self.wrist3_relative and self.cell.yaw_action:
+            step = self.cell.max_joint_step
+            scaled[3] = np.clip(scaled[3] + self.cell.wrist3_holding_yaw(scaled[0]), -step, step)
+        return scaled if self.suction_action else np.append(scaled, -1.0 if self._cup_off else 1.0)
+
+    def from_cell_action(self, cell_action: np.ndarray) -> np.ndarray:
+        """This env's action in [-1, 1] (float32) for a cell action ``[dq_base, dq_shoulder, dq_elbow, (dq_wrist3),
+        suction]`` in radians, e.g. a :class:`~hrc_lab.env.robot.expert.ScriptedExpert` step's: the inverse of
+        :meth:`to_cell_action` (``wrist3="relative"`` subtracts the yaw-holding delta; the suction command is
+        dropped with ``suction="auto"``), clipped to [-1, 1]."""
+        cell_action = np.asarray(cell_action, dtype=float)
+        joints = cell_action[:-1].copy()
+        if self.wrist3_relative and self.cell.yaw_action:
+            joints[3] -= self.cell.wrist3_holding_yaw(joints[0])
+        action = joints / self.cell.max_joint_step
+        if self.suction_action:
+            action = np.append(action, cell_action[-1])
+        return np.clip(action, -1.0, 1.0).astype(np.float32)
+
+    def hold_yaw_action(self, dq_base: float) -> float | None:
+        """The action-space wrist-3 value that keeps the tool's yaw while the base turns by ``dq_base`` (in [-1, 1]
+        units of ``max_joint_step``): 0 with ``wrist3="relative"``, ``HRCCell.wrist3_holding_yaw`` in action units
+        with ``"absolute"``; None when the action has no wrist-3 dimension (the cell's ``yaw_action`` off)."""
+        if not self.cell.yaw_action:
+            return None
+        if self.wrist3_relative:
+            return 0.0
+        step = self.cell.max_joint_step
+        return float(self.cell.wrist3_holding_yaw(float(dq_base) * step) / step)
 
     def lip(self) -> np.ndarray:
         """p_t: the lip at the commanded joints (where the arm is going; the servo lags one control step)."""
@@ -176,9 +277,9 @@ class HRCGoalEnv(gym.Env):
         return float(np.linalg.norm(difference, axis=1).max())
 
     def goal_distances(self) -> np.ndarray:
-        """|P_obj - P_goal| of every goal object."""
-        difference = (self._achieved() - self._desired).reshape(-1, self.dims_per_object)
-        return np.linalg.norm(difference, axis=1)
+        """|P_obj - P_goal| of every goal object (its yaw error under its symmetry, as the reward's)."""
+        difference = goal_differences(self._achieved(), self._desired, self.dims_per_object, self._yaw_orders())
+        return np.linalg.norm(difference, axis=-1)
 
     # --- internals ------------------------------------------------------------------------------------------------
 
@@ -187,6 +288,7 @@ class HRCGoalEnv(gym.Env):
         if self.cases:
             cell.case = self.cases[int(self.np_random.integers(len(self.cases)))]
         cell.reset()
+        rest_z = cell.object_positions()[:, 2]
         if self.correction:
             plan = cell.expert_plan()
             if self.subtask is None:
@@ -206,8 +308,52 @@ class HRCGoalEnv(gym.Env):
             self.goal_objects = list(range(len(cell.cell_objects)))
             goals = cell.goals
         self._desired = np.asarray(goals, dtype=float).ravel()
+        self.yaw_orders = np.array([self._yaw_order(i) for i in self.goal_objects], dtype=int)
         self._start = self._achieved()
         self.elapsed_steps = 0
+        self._cup_off, self._grip, self._lifted = False, -1, False
+        if self.release_on_support:
+            self._release_on_support(rest_z)  # rl.start=held: the part the expert lifted counts as lifted
+
+    def _yaw_order(self, obj: int) -> int:
+        """``yaw_symmetry`` capped at the object's footprint symmetry: 4 for a square, 2 for a rectangle."""
+        half_x, half_y = self.cell.cell_objects[obj].half_size[:2]
+        return math.gcd(self.yaw_symmetry, 4 if math.isclose(half_x, half_y) else 2)
+
+    def _yaw_orders(self) -> np.ndarray | None:
+        """The goal objects' yaw orders when the goals carry a yaw (error correction), else None."""
+        return self.yaw_orders if self.dims_per_object == 4 and len(self.yaw_orders) else None
+
+    def _release_on_support(self, rest_z: np.ndarray) -> None:
+        """``release="support"`` after a control step (module docstring); ``rest_z``: the objects' heights before
+        the step, the grip height of a part gripped in it."""
+        cell = self.cell
+        if self._cup_off:
+            if cell.suction.touching() < 0:  # the lip left the released part: the cup is on again
+                self._cup_off = False
+            return
+        held = cell.suction.held
+        if held < 0:
+            self._grip, self._lifted = -1, False
+            return
+        z = cell.object_positions()[held, 2]
+        if held != self._grip:  # a new grip
+            self._grip, self._grip_z, self._lifted = held, float(rest_z[held]), False
+        self._lifted = self._lifted or z >= self._grip_z + LIFT_M
+        if self._lifted and self._touches_support(held):
+            cell.suction.release()
+            self._cup_off, self._grip, self._lifted = True, -1, False
+
+    def _touches_support(self, obj: int) -> bool:
+        """Whether a geom of object ``obj`` is in contact with one of its allowed supports (MuJoCo's contact list
+        as the last physics substep left it)."""
+        cell = self.cell
+        data = cell.sim.data._data
+        if not data.ncon:
+            return False
+        first, second = np.asarray(data.contact.geom1[: data.ncon]), np.asarray(data.contact.geom2[: data.ncon])
+        part, supports = cell._object_geoms[obj], cell.allowed_supports(obj)
+        return any((a in part and b in supports) or (b in part and a in supports) for a, b in zip(first, second))
 
     def _pick(self, obj: int) -> None:
         """``rl.start=held``: the scripted expert's picking stage of ``obj`` (above it, down onto its top face, cup
@@ -223,7 +369,10 @@ class HRCGoalEnv(gym.Env):
         return np.column_stack([self.cell.object_positions(), self.cell.object_yaws()])
 
     def _achieved(self) -> np.ndarray:
-        return self._poses()[self.goal_objects, : self.dims_per_object].ravel()
+        poses = self._poses()[self.goal_objects, : self.dims_per_object]
+        if self.dims_per_object == 4:  # the yaw under each goal object's symmetry
+            poses[:, 3] = wrap_yaw(poses[:, 3], self.yaw_orders)
+        return poses.ravel()
 
     def _observation(self) -> np.ndarray:
         cell = self.cell
@@ -242,11 +391,17 @@ class HRCGoalEnv(gym.Env):
 def make_goal_env(env_cfg: Any, rl_cfg: Any, seed: int | None = None, subtask: int | None = 0,
                   cases: tuple[int, ...] = ()) -> HRCGoalEnv:
     """The goal env of an ``env`` config of a robot cell (what ``ENVS.build`` makes of it) and an ``rl`` config
-    (``steps_per_subtask``, ``delta_r``, ``suction``); ``subtask`` as in :class:`HRCGoalEnv` (error correction
-    only); ``cases``: a package-to-order cell draws its CASE from these per episode (the DRL baseline of Table 4.3
-    trains on both)."""
+    (``steps_per_subtask``, ``delta_r``, ``suction``, ``start``, ``yaw_symmetry``, ``wrist3``, ``release``);
+    ``subtask`` as in :class:`HRCGoalEnv` (error correction only); ``cases``: a package-to-order cell draws its CASE
+    from these per episode (the DRL baseline of Table 4.3 trains on both)."""
     from hrc_lab.env import ENVS
 
     cell = ENVS.build(env_cfg, seed=seed)
     return HRCGoalEnv(cell, subtask=subtask, steps_per_subtask=rl_cfg.steps_per_subtask, delta_r=rl_cfg.delta_r,
-                      cases=cases, suction=rl_cfg.suction, start=rl_cfg.start)
+                      cases=cases, suction=rl_cfg.suction, start=rl_cfg.start, **task_switches(rl_cfg))
+
+
+def task_switches(rl_cfg: Any) -> dict[str, Any]:
+    """The ``rl`` config's ``yaw_symmetry``, ``wrist3`` and ``release`` as :class:`HRCGoalEnv` keywords (an env
+    built without a config gets the defaults, the faithful reading of 3.3)."""
+    return {"yaw_symmetry": rl_cfg.yaw_symmetry, "wrist3": rl_cfg.wrist3, "release": rl_cfg.release}

@@ -1,7 +1,7 @@
 """Algorithm 1 (thesis 3.2.3, results 3.4.3, Fig. 3.13): hybrid hierarchical guided RL, as DDPG + HER whose
 exploration the trained two-level planner corrects.
 
-Per episode, with probability lambda (drawn from the agent's own seeded generator), the episode is guided: the
+Per episode, with probability lambda (drawn from the wrapper's own seeded generator), the episode is guided: the
 classifier c(x_1) names the object (the task label), and in every control step t of high-level step T
 
     p'_T       = h(x_T, l_T)                        the sub-goal planner's current sub-goal
@@ -11,12 +11,13 @@ classifier c(x_1) names the object (the task label), and in every control step t
         a_t    = d(Delta_t),  Delta_t = p'_T - p_t  the neural dynamic planner's action
 
 and the executed a_t, corrected or not, is what the replay buffer stores. Unguided episodes are pure DDPG
-exploration; HER relabels both alike.
+exploration; HER relabels both alike (with ``rl.guided_episodes=demos`` the guided episodes are also the agent's
+demonstrations, :mod:`hrc_lab.rl.ddpg`).
 
-In stable-baselines3 this is one override: :meth:`GuidedDDPG._sample_action`, which
-``OffPolicyAlgorithm.collect_rollouts`` calls for the action it executes and the action it stores, so the
-correction reaches the environment and the buffer and nothing else of the library changes. The correction rule
-itself is the pure function :func:`needs_correction`; :func:`corrected_action` builds the executed action.
+:class:`GuidedEnv` is an env wrapper: it receives the policy's action, corrects it, and reports the executed action
+in ``info``, which :class:`~hrc_lab.rl.ddpg.HerDDPG` stores; so guidance runs beside its env, in the env's own
+process with ``rl.n_envs`` > 1. The correction rule itself is the pure function :func:`needs_correction`;
+:func:`corrected_action` builds the executed action.
 
 The guide is an object with the :class:`Guide` interface; :class:`CorrectionGuide` is the two-level planner of
 :mod:`hrc_lab.motion` in the error-correction cell (the classifier, the sub-goal planner and the dynamic planner
@@ -27,11 +28,11 @@ from __future__ import annotations
 
 from typing import Any, Protocol
 
+import gymnasium as gym
 import numpy as np
 
 from hrc_lab.env.robot.cell import PICK, PLACE
 from hrc_lab.motion.two_level import correction_input
-from hrc_lab.rl.ddpg import HerDDPG
 
 
 def needs_correction(predicted: np.ndarray, subgoal: np.ndarray, delta_g: float) -> bool:
@@ -130,69 +131,41 @@ class CorrectionGuide:
         return self.ndp.config.mode
 
 
-class GuidedDDPG(HerDDPG):
-    """DDPG (the HER paper's, :class:`~hrc_lab.rl.ddpg.HerDDPG`) whose exploration Algorithm 1 corrects (module
-    docstring). One environment (a DummyVecEnv of one :class:`~hrc_lab.rl.goal_env.HRCGoalEnv`). ``guide`` is
-    not saved with the agent: pass it again after :meth:`load` (``hrc_lab.rl.agent.load_agent`` does)."""
+class GuidedEnv(gym.Wrapper):
+    """Algorithm 1 around a :class:`~hrc_lab.rl.goal_env.HRCGoalEnv` (module docstring): at each reset the episode
+    is guided with probability ``lam`` (drawn from a generator seeded with ``seed``); in a guided episode the
+    action the policy proposes is replaced by the guide's when the lip it leads to is farther than ``delta_g``
+    from the guide's sub-goal. ``info`` says ``guided``, ``corrected`` and, when corrected, the
+    ``executed_action`` (in [-1, 1]), which the agent stores instead of its own
+    (:class:`~hrc_lab.rl.ddpg.HerDDPG`). A wrapper, so that it runs where its env runs (one process per env with
+    ``rl.n_envs`` > 1); the guide is pickled into that process."""
 
-    def __init__(self, *args, guide: Guide | None = None, lam: float = 0.0, delta_g: float = 0.05,
-                 guidance_seed: int | None = None, **kwargs) -> None:
-        self.guide = guide
-        self.lam = lam
-        self.delta_g = delta_g
-        self.guidance_rng = np.random.default_rng(guidance_seed)
-        self.guided_episode = False
-        self.guidance_counts = {"steps": 0, "corrected": 0, "episodes": 0, "guided_episodes": 0}
-        self.episode_corrections: list[int] = []  # corrected steps of every episode so far (0 when unguided)
-        super().__init__(*args, **kwargs)
+    def __init__(self, env: gym.Env, guide: Guide, lam: float, delta_g: float, seed: int | None = None) -> None:
+        super().__init__(env)
+        self.guide, self.lam, self.delta_g = guide, lam, delta_g
+        self.rng = np.random.default_rng(seed)
+        self.guided = False
 
-    @property
-    def guidance_rate(self) -> float:
-        """Corrected steps / all collected steps."""
-        return self.guidance_counts["corrected"] / max(1, self.guidance_counts["steps"])
+    def reset(self, **kwargs) -> tuple[dict, dict]:
+        obs, info = self.env.reset(**kwargs)
+        self.guided = bool(self.rng.random() < self.lam)
+        if self.guided:
+            self.guide.reset(self.unwrapped)
+        return obs, info
 
-    def _goal_env(self) -> Any:
-        envs = getattr(self.env, "envs", None)
-        if envs is None or len(envs) != 1:
-            raise ValueError("GuidedDDPG needs a DummyVecEnv of one HRCGoalEnv")
-        return envs[0].unwrapped
-
-    def _start_episode(self, env: Any) -> None:
-        self.guided_episode = bool(self.guidance_rng.random() < self.lam)
-        self.guidance_counts["episodes"] += 1
-        self.episode_corrections.append(0)
-        if self.guided_episode:
-            if self.guide is None:
-                raise ValueError("GuidedDDPG: a guided episode needs a guide (pass guide=..., also after load)")
-            self.guidance_counts["guided_episodes"] += 1
-            self.guide.reset(env)
-
-    def _sample_action(self, learning_starts: int, action_noise=None, n_envs: int = 1) -> tuple[np.ndarray, np.ndarray]:
-        action, buffer_action = super()._sample_action(learning_starts, action_noise, n_envs)
-        env = self._goal_env()
-        if env.elapsed_steps == 0:
-            self._start_episode(env)
-        self.guidance_counts["steps"] += 1
-        if not self.guided_episode:
-            return action, buffer_action
+    def correction(self, action: np.ndarray) -> np.ndarray | None:
+        """The guide's action when Algorithm 1 corrects ``action`` in this step, else None."""
+        env = self.unwrapped
         subgoal = self.guide.subgoal(env)
-        if not needs_correction(env.predicted_lip(buffer_action[0]), subgoal, self.delta_g):
-            return action, buffer_action
+        if not needs_correction(env.predicted_lip(action), subgoal, self.delta_g):
+            return None
         deltas, suction = self.guide.act(env, subgoal)
         deltas = np.asarray(deltas) / env.max_joint_step
         # the planner moves the lip; wrist 3 keeps the tool's yaw, as in the demonstrations it learned from
-        wrist3 = env.cell.wrist3_holding_yaw(deltas[0]) if env.cell.yaw_action else None
-        suction = suction if env.suction_action else None
-        buffer_action = corrected_action(buffer_action[0], deltas, suction, wrist3)[None]
-        self.guidance_counts["corrected"] += 1
-        self.episode_corrections[-1] += 1
-        return self.policy.unscale_action(buffer_action), buffer_action
+        return corrected_action(action, deltas, suction if env.suction_action else None, env.hold_yaw_action(deltas[0]))
 
-    def dump_logs(self) -> None:
-        counts = self.guidance_counts
-        self.logger.record("guidance/rate", self.guidance_rate)
-        self.logger.record("guidance/guided_episodes", counts["guided_episodes"] / max(1, counts["episodes"]))
-        super().dump_logs()
-
-    def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "guide"]
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        executed = self.correction(action) if self.guided else None
+        obs, reward, terminated, truncated, info = self.env.step(action if executed is None else executed)
+        info.update(guided=self.guided, corrected=executed is not None, executed_action=executed)
+        return obs, reward, terminated, truncated, info

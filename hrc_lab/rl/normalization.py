@@ -7,16 +7,17 @@ metres and yaws in radians, where the last centimetres of Eq. 3.6 are difference
 magnitude ~1. :class:`NormalizedCombinedExtractor` replaces SB3's ``CombinedExtractor`` (flatten and
 concatenate the keys of the goal env's dict observation) by the same with a :class:`RunningNormalizer` per key.
 
-The statistics are buffers named ``running_*``: they are saved with the policy, and SB3's TD3/DDPG copies them to
-the target networks after every gradient step as it does batch-norm statistics. They are updated from every batch
-the networks see in training mode, i.e. the replay buffer's samples, HER's relabelled goals included (as the HER
-paper updates its goal statistics with relabelled goals); in evaluation mode (rollouts, ``predict``) they are only
-read.
+The statistics are buffers named ``running_*``, saved with the policy. As in the reference implementation they
+follow the stored episodes, not the batches the networks see: :func:`update_normalizers` adds a cycle's new
+transitions to every extractor of a policy (actor, critic and their targets), with the desired goals of HER's
+relabelling mixed in (:meth:`~hrc_lab.rl.ddpg.HerDDPG.update_input_statistics`). A forward pass only reads them;
+the mean and std are recomputed once per update, not per pass.
 """
 
 from __future__ import annotations
 
 import gymnasium as gym
+import numpy as np
 import torch
 from stable_baselines3.common.preprocessing import get_flattened_obs_dim
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
@@ -28,7 +29,8 @@ MIN_STD = 1e-2  # the HER baselines' normaliser floor: a constant coordinate is 
 
 class RunningNormalizer(nn.Module):
     """``clip((x - mean) / max(std, min_std), -clip, clip)`` per coordinate, with the mean and std of every row
-    passed through it in training mode (sums kept in float64, so long runs do not lose precision)."""
+    passed to :meth:`update` (sums kept in float64, so long runs do not lose precision). Before any update it
+    passes inputs through."""
 
     def __init__(self, size: int, clip: float = CLIP, min_std: float = MIN_STD) -> None:
         super().__init__()
@@ -36,21 +38,37 @@ class RunningNormalizer(nn.Module):
         self.register_buffer("running_sum", torch.zeros(size, dtype=torch.float64))
         self.register_buffer("running_sumsq", torch.zeros(size, dtype=torch.float64))
         self.register_buffer("running_count", torch.zeros((), dtype=torch.float64))
+        # (mean, std, count): float32 mean and std of the sums at that count (SB3's target copies write the sums
+        # in place, so the count, not a flag, says when to recompute)
+        self._stats: tuple[torch.Tensor, torch.Tensor, float] | None = None
+
+    def update(self, rows: np.ndarray | torch.Tensor) -> None:
+        """Add ``rows`` (any leading shape, the last axis this normaliser's size) to the statistics."""
+        rows = torch.as_tensor(np.asarray(rows), dtype=torch.float64).reshape(-1, self.running_sum.numel())
+        self.running_sum += rows.sum(0)
+        self.running_sumsq += rows.pow(2).sum(0)
+        self.running_count += rows.shape[0]
+        self._stats = None
+
+    def _load_from_state_dict(self, *args, **kwargs) -> None:
+        super()._load_from_state_dict(*args, **kwargs)
+        self._stats = None  # loaded or copied sums (SB3 copies ``running_*`` buffers into the target networks)
+
+    def stats(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """The current mean and std (float32)."""
+        if self._stats is None or self._stats[2] != float(self.running_count):
+            count = float(self.running_count)
+            if count == 0:
+                mean, std = torch.zeros_like(self.running_sum), torch.ones_like(self.running_sum)
+            else:
+                mean = self.running_sum / count
+                std = (self.running_sumsq / count - mean.pow(2)).clamp(min=0.0).sqrt().clamp(min=self.min_std)
+            self._stats = (mean.float(), std.float(), count)
+        return self._stats[0], self._stats[1]
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        if self.training:
-            with torch.no_grad():
-                rows = x.detach().reshape(-1, self.running_sum.numel()).double()
-                self.running_sum += rows.sum(0)
-                self.running_sumsq += rows.pow(2).sum(0)
-                self.running_count += rows.shape[0]
-        count = self.running_count.clamp(min=1.0)
-        mean = self.running_sum / count
-        var = (self.running_sumsq / count - mean.pow(2)).clamp(min=0.0)
-        std = var.sqrt().clamp(min=self.min_std)
-        if self.running_count == 0:  # nothing seen yet: pass through (SB3 trains only after rl.learning_starts)
-            mean, std = torch.zeros_like(mean), torch.ones_like(std)
-        return ((x - mean.to(x.dtype)) / std.to(x.dtype)).clamp(-self.clip, self.clip)
+        mean, std = self.stats()
+        return ((x - mean) / std).clamp(-self.clip, self.clip)
 
 
 class NormalizedCombinedExtractor(BaseFeaturesExtractor):
@@ -65,3 +83,12 @@ class NormalizedCombinedExtractor(BaseFeaturesExtractor):
     def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
         return torch.cat([normalizer(observations[key].flatten(1)) for key, normalizer in self.normalizers.items()],
                          dim=1)
+
+
+def update_normalizers(module: nn.Module, rows: dict[str, np.ndarray]) -> None:
+    """Add ``rows`` (key -> array of rows) to every :class:`NormalizedCombinedExtractor` inside ``module`` (a policy:
+    the actor's, the critic's and their targets' extractors keep the same statistics)."""
+    for extractor in module.modules():
+        if isinstance(extractor, NormalizedCombinedExtractor):
+            for key, normalizer in extractor.normalizers.items():
+                normalizer.update(rows[key])
