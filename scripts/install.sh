@@ -23,7 +23,7 @@ for module in pkgutil.walk_packages(hrc_lab.__path__, "hrc_lab."):  # every modu
     importlib.import_module(module.name)
 # what hrc_lab imports inside functions, and the test runner
 for name in ("lightning.pytorch", "mlflow.tracking", "matplotlib.pyplot", "sklearn.gaussian_process", "cv2",
-             "mediapipe", "robosuite", "psycopg", "pytest"):
+             "mediapipe", "robosuite", "psycopg", "gymnasium_robotics", "pytest"):
     importlib.import_module(name)
 import lightning, mlflow, torch, torch_geometric
 print("installed: hrc_lab torch", torch.__version__, "pyg", torch_geometric.__version__, "lightning",

@@ -1,0 +1,128 @@
+"""A public anchor for hrc_lab's DDPG + HER: the gymnasium-robotics Fetch tasks the HER reference implementation was
+published on (Andrychowicz et al. 2017; Plappert et al. 2018, arXiv:1802.09464), trained by the same agent
+(:func:`~hrc_lab.rl.agent.build_ddpg_her`) and the same epoch loop (:func:`~hrc_lab.rl.trainer.train_epochs`) as
+the thesis' robot cells, so a result there can be read against a curve nobody here produced.
+
+- :func:`make_fetch_env`: ``FetchReach-v4``, ``FetchPush-v4`` or ``FetchPickAndPlace-v4`` (50-step episodes) inside
+  :class:`FetchEnv`, which gives the loop what it reads from hrc_lab's goal envs: ``horizon`` and
+  ``compute_reward`` on the outermost wrapper, and the info keys of :class:`~hrc_lab.rl.agent.EpisodeMetrics`
+  (nothing is held, moved or collided in hrc_lab's sense; ``goal_distances`` is |achieved - desired goal|);
+- :func:`train_fetch`: ``epochs`` epochs of the reference loop on ``rl.n_envs`` envs, each followed by
+  ``eval_episodes`` episodes of the deterministic policy on a separate env (success: ``info["is_success"]`` at
+  the episode's last step, as the reference's test rollouts); returns the per-epoch success rates.
+
+``rl.steps_per_subtask`` and the other keys of the robot cells (delta_r, suction, start, yaw, wrist 3, release,
+guidance) do not apply to these envs and are ignored. ``conf/experiment/rl/fetch.yaml`` runs this as an
+experiment; ``scripts/bench_fetch.py`` plots a curve beside the published one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from hrc_lab.env.fetch import FETCH_ENV_IDS
+from hrc_lab.rl.configs import RLConfig
+
+__all__ = ["FETCH_ENV_IDS", "FetchEnv", "evaluate_fetch", "make_fetch_env", "train_fetch"]
+EVAL_SEED = 10_000  # the evaluation env of a run with seed s draws its goals from EVAL_SEED + s (apart from training)
+
+
+class FetchEnv(gym.Wrapper):
+    """A Fetch env as :mod:`hrc_lab.rl.trainer` and :mod:`hrc_lab.rl.agent` take a goal env: ``horizon`` (the time
+    limit, 50 steps) and ``compute_reward`` on this wrapper (gymnasium 1.x wrappers forward no attributes, and
+    stable-baselines3's HER buffer and the loop read them from the outermost env), and each step's info with
+    ``held=False``, ``moved_m=0.0``, ``collided=False`` and ``goal_distances=[|achieved - desired goal|]``."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self.horizon = int(env.spec.max_episode_steps)
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
+        return self.env.unwrapped.compute_reward(achieved_goal, desired_goal, info)
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        distance = float(np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"]))
+        info = {**info, "held": False, "moved_m": 0.0, "collided": False, "goal_distances": [distance]}
+        return obs, reward, terminated, truncated, info
+
+
+def make_fetch_env(env_id: str, seed: int | None = None) -> FetchEnv:
+    """The gymnasium-robotics env ``env_id`` (one of :data:`FETCH_ENV_IDS`) inside :class:`FetchEnv`, its goals and
+    action space seeded with ``seed`` (None: unseeded)."""
+    if env_id not in FETCH_ENV_IDS:
+        raise ValueError(f"unknown Fetch env id '{env_id}'; choose one of {list(FETCH_ENV_IDS)}")
+    import gymnasium_robotics
+
+    gym.register_envs(gymnasium_robotics)
+    env = FetchEnv(gym.make(env_id))
+    env.reset(seed=seed)
+    env.action_space.seed(seed)
+    return env
+
+
+@dataclass
+class FetchFactory:
+    """A picklable ``make_env(index)`` for :func:`~hrc_lab.rl.trainer.training_envs` (one process per env when
+    there are several): env ``index`` seeded ``seed + index * ENV_SEED_STRIDE``, as the robot cells' envs
+    (stable-baselines3 then reseeds env i of the agent's VecEnv with the agent's seed + i at its first reset)."""
+
+    env_id: str
+    seed: int
+
+    def __call__(self, index: int) -> FetchEnv:
+        from hrc_lab.rl.trainer import ENV_SEED_STRIDE
+
+        return make_fetch_env(self.env_id, self.seed + index * ENV_SEED_STRIDE)
+
+
+def evaluate_fetch(agent: Any, env: FetchEnv, episodes: int) -> dict[str, float]:
+    """``success_rate`` (``info["is_success"]`` at the last step) and ``final_distance`` (|achieved - desired goal|
+    then, m) of the deterministic policy over ``episodes`` episodes of ``env``, each from its next goal."""
+    successes, distances = [], []
+    for _ in range(episodes):
+        obs, _ = env.reset()
+        terminated = truncated = False
+        while not (terminated or truncated):
+            action, _ = agent.predict(obs, deterministic=True)
+            obs, _, terminated, truncated, info = env.step(action)
+        successes.append(float(info["is_success"]))
+        distances.append(info["goal_distances"][0])
+    return {"success_rate": float(np.mean(successes)), "final_distance": float(np.mean(distances))}
+
+
+def train_fetch(env_id: str, rl_cfg: RLConfig, epochs: int, seed: int = 0, eval_episodes: int = 10,
+                log: Callable[[dict[str, float], int], None] | None = None,
+                save: Callable[[Any], None] | None = None) -> list[float]:
+    """Train DDPG + HER (:func:`~hrc_lab.rl.agent.build_ddpg_her` with ``rl_cfg``) on ``env_id`` for ``epochs``
+    epochs of :func:`~hrc_lab.rl.trainer.train_epochs` on ``rl_cfg.n_envs`` envs; after each, ``eval_episodes``
+    episodes of the deterministic policy on a separate env (:func:`evaluate_fetch`). ``log(metrics, epoch)`` gets
+    each epoch's metrics (the evaluation's and the loop's: training rates, speeds, ``epoch_s``); ``save(agent)``
+    the trained agent at the end. Returns the success rate after each epoch (epoch 1 first)."""
+    from hrc_lab.rl.agent import build_ddpg_her
+    from hrc_lab.rl.trainer import train_epochs, training_envs
+
+    if epochs < 1 or eval_episodes < 1:
+        raise ValueError(f"epochs and eval_episodes must be >= 1, got {epochs}, {eval_episodes}")
+    test = make_fetch_env(env_id, EVAL_SEED + seed)  # also rejects an unknown id before any process starts
+    envs = training_envs(FetchFactory(env_id, seed), rl_cfg.n_envs)
+    curve: list[float] = []
+
+    def record(metrics: dict[str, float], epoch: int) -> None:
+        curve.append(metrics["success_rate"])
+        if log is not None:
+            log(metrics, epoch)
+
+    try:
+        agent = build_ddpg_her(rl_cfg, envs, seed=seed)
+        train_epochs(agent, rl_cfg, epochs, evaluate=lambda agent, epoch: evaluate_fetch(agent, test, eval_episodes),
+                     log=record, save=save or (lambda agent: None), checkpoint_every=epochs, desc=env_id)
+    finally:
+        envs.close()
+        test.close()
+    return curve
