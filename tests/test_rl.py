@@ -32,6 +32,7 @@ from hrc_lab.rl.agent import (
     load_agent,
     save_agent,
 )
+from hrc_lab.rl.buffers import FilledHerReplayBuffer
 from hrc_lab.rl.configs import RLConfig
 from hrc_lab.rl.goal_env import make_goal_env, sparse_reward
 from hrc_lab.rl.guidance import CorrectionGuide, GuidedEnv, corrected_action, needs_correction
@@ -176,6 +177,19 @@ def test_unguided_ddpg_her_updates_and_relabels_with_eq_3_6(env):
     assert 0.5 < relabelled.mean() < 1.0
     assert np.all(np.any(np.all(desired[relabelled][:, None] == stored[None], axis=-1), axis=1))
     assert set(np.unique(recomputed)) == {0.0, -1.0}  # random motions leave blue in place: its pose is reached
+
+
+def test_filled_buffer_samples_only_stored_transitions_of_finished_episodes(env):
+    agent = build_ddpg_her(RLConfig(**{**TINY, "buffer_size": 50_000}), env, seed=0)
+    learn_episodes(agent, 2)
+    buffer = agent.replay_buffer
+    assert isinstance(buffer, FilledHerReplayBuffer) and buffer.size() == 2 * STEPS
+    batch = buffer.sample(512)
+    stored = buffer.observations["observation"][: buffer.size(), 0]
+    sampled = batch.observations["observation"].numpy()
+    assert np.all(np.any(np.all(sampled[:, None] == stored[None], axis=-1), axis=1))
+    rows = {tuple(r) for r in sampled}
+    assert len(rows) > STEPS  # spread over both episodes, not one row
 
 
 def _filled_agent(env, **values):

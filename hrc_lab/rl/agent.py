@@ -30,6 +30,7 @@ from stable_baselines3.common.noise import NormalActionNoise
 from stable_baselines3.common.vec_env import VecEnv
 from tqdm import tqdm
 
+from hrc_lab.rl.buffers import FilledHerReplayBuffer
 from hrc_lab.rl.configs import RLConfig
 from hrc_lab.rl.ddpg import HerDDPG
 from hrc_lab.rl.goal_env import HRCGoalEnv
@@ -74,7 +75,7 @@ def ddpg_her_kwargs(cfg: RLConfig, env: gym.Env | VecEnv, seed: int) -> dict[str
         "train_freq": (cycle_steps(cfg, env), "step"),
         "gradient_steps": cfg.gradient_steps,
         "action_noise": NormalActionNoise(np.zeros(n_actions), np.full(n_actions, cfg.action_noise_std)),
-        "replay_buffer_class": HerReplayBuffer,
+        "replay_buffer_class": FilledHerReplayBuffer,
         "replay_buffer_kwargs": {"n_sampled_goal": cfg.n_sampled_goal,
                                  "goal_selection_strategy": cfg.goal_selection_strategy},
         "policy_kwargs": policy_kwargs(cfg),

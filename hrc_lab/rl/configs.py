@@ -95,7 +95,11 @@ class RLConfig:
     # action above the policy's (``q_filter``). No demonstration buffer without demonstrations ---
     demo_batch_size: int = 32  # of rl.batch_size 256: Nair et al.'s share (128 of 1024)
     bc_weight: float = 7.8
-    q_filter: bool = True
+    # Nair et al.'s Q-filter (BC only where Q(s, a_demo) > Q(s, pi(s))). Off: in the one-object correction cell
+    # (50 demonstrations, 2 x 256, BC start, 2000 critic-only steps, seed 0) the filtered actor lost the pick within
+    # two epochs (evaluation grip 0.95 -> 0.45 -> 0.00, SR 0.25 -> 0.00) while the unfiltered one kept it (grip
+    # 1.00 / 0.95) and rose to SR 0.30 by epoch 3 (issue 43's note)
+    q_filter: bool = False
     # Before its first update with demonstrations, the actor clones them for ``bc_pretrain_steps`` batches (a
     # pure behaviour-cloning start) and the critic alone then learns that policy's values for
     # ``critic_warmup_steps`` gradient steps before the actor follows it. Without them the Q-filter of an untrained

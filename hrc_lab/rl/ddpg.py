@@ -36,10 +36,11 @@ from __future__ import annotations
 import numpy as np
 import torch as th
 import torch.nn.functional as F
-from stable_baselines3 import DDPG, HerReplayBuffer
+from stable_baselines3 import DDPG
 from stable_baselines3.common.type_aliases import DictReplayBufferSamples
 from stable_baselines3.common.utils import polyak_update
 
+from hrc_lab.rl.buffers import FilledHerReplayBuffer
 from hrc_lab.rl.normalization import update_normalizers
 
 
@@ -70,7 +71,7 @@ class HerDDPG(DDPG):
         self.bc_pretrain_steps, self.critic_warmup_steps = bc_pretrain_steps, critic_warmup_steps
         self.critic_warmup_until: int | None = None  # the update count until which only the critic learns
         self.guided_episodes = guided_episodes
-        self.demo_buffer: HerReplayBuffer | None = None
+        self.demo_buffer: FilledHerReplayBuffer | None = None
         self._open_demos: dict[int, list[tuple]] = {}  # env index -> the guided episode being collected
         self._statistics_upto = 0  # transitions of the replay buffer already in the normaliser's statistics
         super().__init__(*args, **kwargs)
@@ -113,7 +114,7 @@ class HerDDPG(DDPG):
         demonstration buffer (made on first use, as large as the replay buffer) and its inputs in the normaliser's
         statistics."""
         if self.demo_buffer is None:
-            self.demo_buffer = HerReplayBuffer(
+            self.demo_buffer = FilledHerReplayBuffer(
                 self.buffer_size, self.observation_space, self.action_space, env=self.env, device="cpu", n_envs=1,
                 **self.replay_buffer_kwargs)
         for k, (obs, next_obs, action, reward, info) in enumerate(episode):
