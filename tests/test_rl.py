@@ -438,6 +438,14 @@ def test_checkpoint_round_trip_resumes_training(env, tmp_path, monkeypatch):
     assert statistics == agent.actor.features_extractor.normalizers["observation"].running_count > 0
     learn_episodes(loaded, 4)
     assert loaded.num_timesteps == 4 * STEPS and loaded.replay_buffer.size() == 4 * STEPS
+    # resumed without its replay buffer: the normaliser takes the fresh buffer's new rows, not empty ones
+    fresh = load_agent(tmp_path / "small", guided)
+    normalizer = fresh.actor.features_extractor.normalizers["observation"]
+    count, total = normalizer.running_count.item(), normalizer.running_sum.clone()
+    learn_episodes(fresh, 4)
+    stored = fresh.replay_buffer.observations["observation"][: fresh.replay_buffer.size(), 0]
+    assert normalizer.running_count.item() == count + STEPS and fresh.replay_buffer.size() == STEPS
+    torch.testing.assert_close(normalizer.running_sum - total, torch.as_tensor(stored, dtype=torch.float64).sum(0))
     scores = evaluate(loaded, env, episodes=2)
     assert set(scores) == {"success_rate", "collision_rate", "final_distance", "grip_rate", "moved_rate"}
     assert 0 <= scores["success_rate"] <= 1

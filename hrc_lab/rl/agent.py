@@ -54,9 +54,7 @@ def policy_kwargs(cfg: RLConfig) -> dict[str, Any]:
 def cycle_steps(cfg: RLConfig, env: gym.Env | VecEnv) -> int:
     """Steps of each env in one cycle: ``rl.episodes_per_cycle`` episodes over all envs, every episode of a goal env
     ``horizon`` steps long (stable-baselines3 counts cycles in episodes with one env only)."""
-    n_envs = getattr(env, "num_envs", 1)
-    horizon = env.get_attr("horizon", [0])[0] if isinstance(env, VecEnv) else env.get_wrapper_attr("horizon")
-    return cfg.episodes_per_cycle // n_envs * int(horizon)
+    return cfg.episodes_per_cycle // getattr(env, "num_envs", 1) * env_horizon(env)
 
 
 def ddpg_her_kwargs(cfg: RLConfig, env: gym.Env | VecEnv, seed: int) -> dict[str, Any]:
@@ -122,9 +120,15 @@ def build_guided_ddpg_her(cfg: RLConfig, env: gym.Env | VecEnv, seed: int = 0) -
     return with_silent_logger(HerDDPG(**ddpg_her_kwargs(cfg, env, seed)))
 
 
+def env_horizon(env: gym.Env | VecEnv) -> int:
+    """Control steps per episode of a goal env, or of a VecEnv's envs (every episode of a goal env has this
+    length)."""
+    return int(env.get_attr("horizon", [0])[0] if isinstance(env, VecEnv) else env.get_wrapper_attr("horizon"))
+
+
 def episode_horizon(agent: HerDDPG) -> int:
-    """Control steps per episode of the agent's envs (every episode of a goal env has this length)."""
-    return int(agent.get_env().get_attr("horizon", [0])[0])
+    """Control steps per episode of the agent's envs."""
+    return env_horizon(agent.get_env())
 
 
 class EpisodeMetrics(BaseCallback):

@@ -62,7 +62,7 @@ class HerDDPG(DDPG):
 
     def __init__(self, *args, action_l2: float = 0.0, random_eps: float = 0.0, clip_return: bool = False,
                  target_update: str = "step", demo_batch_size: int = 0, bc_weight: float = 0.0,
-                 q_filter: bool = True, bc_pretrain_steps: int = 0, critic_warmup_steps: int = 0,
+                 q_filter: bool = False, bc_pretrain_steps: int = 0, critic_warmup_steps: int = 0,
                  guided_episodes: str = "replay", **kwargs) -> None:
         # validated with the rl config (hrc_lab.rl.configs.RLConfig), which is what builds every agent
         self.action_l2, self.random_eps, self.clip_return = action_l2, random_eps, clip_return
@@ -73,7 +73,7 @@ class HerDDPG(DDPG):
         self.guided_episodes = guided_episodes
         self.demo_buffer: FilledHerReplayBuffer | None = None
         self._open_demos: dict[int, list[tuple]] = {}  # env index -> the guided episode being collected
-        self._statistics_upto = 0  # transitions of the replay buffer already in the normaliser's statistics
+        self._statistics_steps = 0  # num_timesteps when the normaliser last took the replay buffer's new rows
         super().__init__(*args, **kwargs)
 
     # --- exploration and storage --------------------------------------------------------------------------------
@@ -129,22 +129,21 @@ class HerDDPG(DDPG):
 
     def _add_statistics(self, rows: dict[str, np.ndarray]) -> None:
         """Observation and goal rows into the normaliser's statistics; the desired goals as HER samples them:
-        ``her_ratio`` of them are achieved goals of the same episodes ("future" relabelling), the rest the
-        original desired goals."""
-        relabelled = max(1, round(self.replay_buffer.her_ratio / max(1e-9, 1 - self.replay_buffer.her_ratio)))
-        desired = np.concatenate([rows["desired_goal"], *[rows["achieved_goal"]] * relabelled])
+        ``n_sampled_goal`` achieved goals of the same episodes ("future" relabelling) per original desired goal."""
+        desired = np.concatenate([rows["desired_goal"], *[rows["achieved_goal"]] * self.replay_buffer.n_sampled_goal])
         update_normalizers(self.policy, {**rows, "desired_goal": desired})
 
     def update_input_statistics(self) -> None:
-        """Add the transitions stored since the last call (every env's) to the normaliser's statistics."""
+        """Add the transitions stored since the last call (every env's) to the normaliser's statistics: the rows
+        written since then end at the buffer's position (also when a resumed agent starts a fresh buffer)."""
         buffer = self.replay_buffer
-        stored = self.num_timesteps // buffer.n_envs  # rows written so far (one per env per step)
-        if stored <= self._statistics_upto:
+        new = min((self.num_timesteps - self._statistics_steps) // buffer.n_envs, buffer.buffer_size)
+        if new <= 0:
             return
-        rows = np.arange(self._statistics_upto, stored)[-buffer.buffer_size:] % buffer.buffer_size
+        rows = (buffer.pos - new + np.arange(new)) % buffer.buffer_size
         self._add_statistics({key: value[rows].reshape(-1, value.shape[-1])
                               for key, value in buffer.observations.items()})
-        self._statistics_upto = stored
+        self._statistics_steps = self.num_timesteps
 
     # --- training -----------------------------------------------------------------------------------------------
 
