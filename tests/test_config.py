@@ -108,8 +108,8 @@ def test_ch5_configs_reject_a_wrong_goal_count(compose_config):
         validate_config(compose_config("experiment=ch5/fig_5_7", "env.n_goals=5"))
 
 
-# single jobs (tools) and public benchmarks (rl/fetch: scripts/bench_fetch.py plots it), no report section
-TOOLS = {"data/collect", "data/render_demo", "ch5/annotate", "rl/fetch"}
+# single jobs (tools), no report section
+TOOLS = {"data/collect", "data/render_demo", "ch5/annotate"}
 
 
 @pytest.mark.parametrize("experiment", [e for e in EXPERIMENTS if not e.endswith("_quick") and e not in TOOLS])

@@ -20,6 +20,7 @@ COMMANDS = {
     "fig_3_13": "hrc-lab experiment=ch3/fig_3_13 hydra/launcher=joblib",
     "fig_3_12": "hrc-lab experiment=ch3/fig_3_12 hydra/launcher=joblib",
     "fig_3_9": "hrc-lab experiment=ch3/fig_3_9 hydra/launcher=joblib",
+    "fetch": "hrc-lab experiment=rl/fetch hydra/launcher=joblib",
     "table_4_1": "hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib",
     "fig_4_7": "hrc-lab experiment=ch4/fig_4_7 hydra/launcher=joblib",
     "practical": "hrc-lab experiment=ch4/practical hydra/launcher=joblib",

@@ -58,8 +58,11 @@ TOPICS = {
         "gymnasium goal env (`hrc_lab/rl/goal_env.py`), not the thesis' CoppeliaSim UR10; the agent is "
         "stable-baselines3's DDPG with its HER replay buffer (`hrc_lab/rl/agent.py`), the guide the two-level planner "
         "trained on scripted-expert demonstrations (`hrc_lab/experiments/ch3_motion.py`). Algorithm 1 runs one "
-        "episode and one update per epoch; our epoch is in each section (`hrc_lab/experiments/ch3_rl.py`).",
-        [("ch3/fig_3_13", "fig_3_13"), ("ch3/fig_3_12", "fig_3_12"), ("ch3/fig_3_9", "fig_3_9")],
+        "episode and one update per epoch; our epoch is in each section (`hrc_lab/experiments/ch3_rl.py`). "
+        "Throughput of the goal env and of training, before and after the lean step and the reference's cycle, "
+        "measured side by side in one run: [ch3_rl/throughput.md](ch3_rl/throughput.md) "
+        "(`python scripts/bench_rl_throughput.py --out reports/ch3_rl/throughput.md`).",
+        [("ch3/fig_3_13", "fig_3_13"), ("ch3/fig_3_12", "fig_3_12"), ("ch3/fig_3_9", "fig_3_9"), ("rl/fetch", "fetch")],
     ),
     "ch4_motion": (
         "Ch.4 motion module: task-conditioned sub-goal planner and neural dynamic planner vs. VI, GPR, MLP",

@@ -13,7 +13,7 @@ the thesis' robot cells, so a result there can be read against a curve nobody he
 
 ``rl.steps_per_subtask`` and the other keys of the robot cells (delta_r, suction, start, yaw, wrist 3, release,
 guidance) do not apply to these envs and are ignored. ``conf/experiment/rl/fetch.yaml`` runs this as an
-experiment; ``scripts/bench_fetch.py`` plots a curve beside the published one.
+experiment; the ch3_rl report plots its curves beside :data:`PUBLISHED` (``hrc_lab.report.ch3_rl``).
 """
 
 from __future__ import annotations
@@ -28,7 +28,22 @@ import numpy as np
 from hrc_lab.env.fetch import FETCH_ENV_IDS
 from hrc_lab.rl.configs import RLConfig
 
-__all__ = ["FETCH_ENV_IDS", "FetchEnv", "evaluate_fetch", "make_fetch_env", "train_fetch"]
+__all__ = ["FETCH_ENV_IDS", "PUBLISHED", "FetchEnv", "evaluate_fetch", "make_fetch_env", "train_fetch"]
+
+# The published anchor (read, not measured here). Plappert et al. 2018's text, as quoted in a public Q&A thread
+# (datascience.stackexchange.com/questions/68190): "We train for 50 epochs (one epoch consists of 19 x 2 x 50 = 1 900
+# full episodes), which amounts to a total of 4.75 x 10^6 timesteps." The success level and the epochs are read off
+# its Fig. 2 (median test success rate, DDPG + HER, sparse reward) as commonly cited: ~1.0 after ~10-20 epochs;
+# approximate, and for FetchPush-v1 (mujoco-py), of which gymnasium-robotics' FetchPush-v4 is the port to the mujoco
+# bindings. rl-baselines3-zoo's FetchPush entry trains TQC (hyperparams/her.yml), another algorithm: no anchor for DDPG.
+PUBLISHED = {
+    "FetchPush-v4": {
+        "source": "Plappert et al. 2018, Multi-Goal Reinforcement Learning: Challenging Robotics Environments and "
+                  "Request for Research, arXiv:1802.09464, Fig. 2 (FetchPush-v1, DDPG + HER, 19 MPI workers)",
+        "success_rate": 1.0,  # approximately, median over seeds
+        "episodes": (10 * 1900, 20 * 1900),  # epochs 10-20 of 19 workers x 2 rollouts x 50 cycles
+    },
+}
 EVAL_SEED = 10_000  # the evaluation env of a run with seed s draws its goals from EVAL_SEED + s (apart from training)
 
 
