@@ -7,19 +7,22 @@ column, e.g. ``4of5`` or ``3goals``, plus the robot-cell case when it is not CAS
 anything heavy is imported, so a bad key fails within a second. Sweeps use Hydra's launchers
 (``hydra/launcher=joblib`` locally; submitit or Ray on a cluster).
 
-Exit codes: 0 success, 1 the job failed (MLflow status FAILED), 2 config error (no run is created),
-143 / 130 killed by SIGTERM / SIGINT (MLflow status KILLED, tag ``signal``).
+Exit codes: 0 success, 1 the job failed (MLflow status FAILED), 2 config error (no run is created: a value
+``validate_config`` rejects, or one Hydra cannot compose, e.g. an unknown group option, whose message lists the
+options), 143 / 130 killed by SIGTERM / SIGINT (MLflow status KILLED, tag ``signal``).
 """
 
 from __future__ import annotations
 
 import hashlib
 import logging
+import os
 import sys
 from pathlib import Path
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
+from hydra.errors import ConfigCompositionException, MissingConfigException, OverrideParseException
 from hydra.types import RunMode
 from omegaconf import DictConfig
 
@@ -182,10 +185,21 @@ def _hydra_main(cfg: DictConfig) -> float | None:
     return metrics.get("sr")  # the value an Optuna sweeper would optimise
 
 
+COMPOSITION_ERRORS = (ConfigCompositionException, MissingConfigException, OverrideParseException)
+
+
 def main() -> None:
     if not CONF_DIR.is_dir():
         sys.exit(f"hrc-lab: no config folder at {CONF_DIR}; install hrc_lab from a checkout with `pip install -e .`")
-    _hydra_main()
+    # Hydra reports a config it cannot compose like a failed job (exit 1); with its errors raised, hrc-lab tells them
+    # apart (a failed job's traceback is then printed in full)
+    os.environ.setdefault("HYDRA_FULL_ERROR", "1")
+    try:
+        _hydra_main()
+    except COMPOSITION_ERRORS as err:
+        cause = f"\n{err.__cause__}" if err.__cause__ is not None else ""
+        print(f"hrc-lab: config error: {err}{cause}", file=sys.stderr)
+        sys.exit(2)
 
 
 if __name__ == "__main__":

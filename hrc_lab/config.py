@@ -108,6 +108,12 @@ def runs_dir() -> Path:
     return Path(os.environ.get("HRC_LAB_RUNS", "runs"))
 
 
+def default_tracking_uri() -> str:
+    """The MLflow store a job logs to by default (``conf/logger/mlflow.yaml``: the sqlite file under
+    :func:`runs_dir`), for the console scripts that read it (``hrc-lab-report``, ``hrc-lab-runs``)."""
+    return f"sqlite:///{runs_dir()}/mlflow.db"
+
+
 def group_registries() -> dict[str, Registry]:
     """The registry of every config group that selects an implementation by ``name``."""
     from hrc_lab.env import ENVS

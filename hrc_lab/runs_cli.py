@@ -16,6 +16,7 @@ import time
 from mlflow.entities import ViewType
 from mlflow.tracking import MlflowClient
 
+from hrc_lab.config import default_tracking_uri
 from hrc_lab.processes import process_start
 from hrc_lab.tracking import resolve_tracking_uri
 
@@ -67,7 +68,8 @@ def stale(tracking_uri: str, dry_run: bool, other_hosts_hours: float | None) -> 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="hrc-lab-runs", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--tracking-uri", default="sqlite:///runs/mlflow.db", help="MLflow tracking URI")
+    parser.add_argument("--tracking-uri", default=default_tracking_uri(),
+                        help="MLflow tracking URI (default: the store under $HRC_LAB_RUNS, else runs/)")
     commands = parser.add_subparsers(dest="command", required=True)
     stale_cmd = commands.add_parser("stale", help="mark RUNNING runs whose process is gone KILLED")
     stale_cmd.add_argument("--dry-run", action="store_true", help="only list them")

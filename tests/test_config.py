@@ -72,6 +72,21 @@ def test_cli_exits_2_naming_the_bad_key(cli_env, console_script):
     assert "config error" in result.stderr and "env.n_selected" in result.stderr
 
 
+@pytest.mark.parametrize("override, expected", [("reasoning=nope", "Available options in 'reasoning'"),
+                                                ("reasoning.hidden=abc", "reasoning.hidden")])
+def test_cli_exits_2_when_hydra_cannot_compose(cli_env, console_script, override, expected):
+    """An unknown group option or a value of the wrong type is a config error too (issue 49: Hydra exited 1)."""
+    result = subprocess.run(
+        [console_script("hrc-lab"), "experiment=ch4/table_4_1", override, "hydra.mode=RUN"],
+        capture_output=True,
+        text=True,
+        env=cli_env,
+        timeout=60,
+    )
+    assert result.returncode == 2, result.stderr[-3000:]
+    assert "config error" in result.stderr and expected in result.stderr
+
+
 HEAVY = ("torch", "lightning", "mlflow", "robosuite", "mujoco", "sklearn", "torch_geometric", "mediapipe")
 
 VALIDATE_IN_A_FRESH_INTERPRETER = f"""

@@ -106,6 +106,35 @@ def test_stale_marks_runs_whose_process_is_gone(tmp_path):
     assert elsewhere in dict(stale(uri, dry_run=False, other_hosts_hours=0.0))
 
 
+def test_console_scripts_read_the_store_under_hrc_lab_runs(tmp_path, monkeypatch):
+    """hrc-lab-runs and hrc-lab-report default to the store jobs log to: ``$HRC_LAB_RUNS/mlflow.db`` (issue 49: the
+    runs tool made an empty ./runs/mlflow.db instead)."""
+    from hrc_lab import runs_cli
+    from hrc_lab.report import cli as report_cli
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("HRC_LAB_RUNS", str(tmp_path / "elsewhere"))
+    client = MlflowClient(f"sqlite:///{tmp_path}/elsewhere/mlflow.db")
+    experiment = client.create_experiment("exp", artifact_location=(tmp_path / "art").as_uri())
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    dead = client.create_run(experiment, tags=process_identity(gone.pid)).info.run_id
+
+    runs_cli.main(["stale"])
+    assert client.get_run(dead).info.status == "KILLED"
+    assert not (tmp_path / "runs").exists()
+    seen = {}
+
+    def build_topic(topic, uri, *args, **kwargs):
+        seen["uri"] = uri
+        (tmp_path / "report.md").write_text("")
+        return tmp_path / "report.md"
+
+    monkeypatch.setattr(report_cli, "build_topic", build_topic)
+    report_cli.main(["ch3_rl"])
+    assert seen["uri"] == f"sqlite:///{tmp_path}/elsewhere/mlflow.db"
+
+
 def _fit(checkpoints: Path, max_epochs: int, resume: Path | None = None, own_generator: bool = False) -> torch.Tensor:
     """A small network with dropout, trained from a fixed seed; returns its final weights. ``own_generator``: the
     batches come from a seeded generator of the data's (as the Ch.6 detector's), not from torch's global one."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from hrc_lab.config import default_tracking_uri
 from hrc_lab.report.build import build_topic
 from hrc_lab.report.sections import TOPICS
 
@@ -16,7 +17,8 @@ from hrc_lab.report.sections import TOPICS
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="hrc-lab-report", description=__doc__)
     parser.add_argument("topic", choices=sorted(TOPICS), help="which report to build")
-    parser.add_argument("--tracking-uri", default="sqlite:///runs/mlflow.db", help="MLflow tracking URI")
+    parser.add_argument("--tracking-uri", default=default_tracking_uri(),
+                        help="MLflow tracking URI (default: the store under $HRC_LAB_RUNS, else runs/)")
     parser.add_argument("--out", type=Path, default=Path("reports"), help="folder for the markdown and PNGs")
     parser.add_argument(
         "--sweep",
