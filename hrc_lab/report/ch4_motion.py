@@ -9,7 +9,7 @@ from hrc_lab.report.ch4_conditions import conditions_paragraph
 from hrc_lab.report.plots import success_bars
 from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting
 from hrc_lab.report.sections import Section, register_section
-from hrc_lab.report.thesis import fmt, thesis_results
+from hrc_lab.report.thesis import fmt, thesis_cells, thesis_results, thesis_value
 
 CELLS = ["2of3", "3of3", "3of5", "4of5"]
 METHODS = ["tc_vi", "vi", "gpr", "mlp"]
@@ -63,20 +63,21 @@ def _baselines_paragraph(runs: pd.DataFrame, thesis: dict) -> list[str]:
 def table_4_2(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch4"]["table_4_2"]
     sr, r2 = mean_std(runs, ["method", "cell"], "sr"), mean_std(runs, ["method", "cell"], "r2")
-    cells = [c for c in CELLS if c in set(runs.cell)]
+    cells = thesis_cells(runs.cell, CELLS)
     methods = [m for m in METHODS if m in set(runs.method)]
     rows, csv = [], []
     for method in methods:
         ref = thesis[THESIS_KEYS[method]]
         row = {"method": LABELS[method]}
         for cell in cells:
-            i = CELLS.index(cell)
+            ref_r2 = thesis_value(ref["r2"], thesis["columns"], cell)  # None: a cell the thesis did not run
+            ref_sr = thesis_value(ref["sr"], thesis["columns"], cell) or (None, None)
             r2_mean, r2_std = _stat(r2, method, cell)
             sr_mean, sr_std = _stat(sr, method, cell)
-            row[f"{cell} R²"] = f"{fmt(r2_mean, r2_std)} ({fmt(ref['r2'][i])})"
-            row[f"{cell} SR"] = f"{fmt(sr_mean, sr_std)} ({fmt(*ref['sr'][i])})"
+            row[f"{cell} R²"] = f"{fmt(r2_mean, r2_std)} ({fmt(ref_r2)})"
+            row[f"{cell} SR"] = f"{fmt(sr_mean, sr_std)} ({fmt(*ref_sr)})"
             csv.append({"method": method, "cell": cell, "r2_mean": r2_mean, "r2_std": r2_std, "sr_mean": sr_mean,
-                        "sr_std": sr_std, "thesis_r2": ref["r2"][i], "thesis_sr": ref["sr"][i][0]})
+                        "sr_std": sr_std, "thesis_r2": ref_r2, "thesis_sr": ref_sr[0]})
         rows.append(row)
     failures = runs.groupby(["method"])[[c for c in runs.columns if c.startswith("fail_")]].mean()
     failures = failures.reindex(methods).rename(index=LABELS).round(2)

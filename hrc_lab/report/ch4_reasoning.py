@@ -14,7 +14,7 @@ from hrc_lab.report.ch4_conditions import conditions_paragraph  # noqa: E402
 from hrc_lab.report.plots import success_bars  # noqa: E402
 from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
-from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
+from hrc_lab.report.thesis import fmt, thesis_cells, thesis_results, thesis_value  # noqa: E402
 
 CELLS = ["2of3", "3of3", "3of5", "4of5"]
 METHODS = ["ours", "ours_all_earlier", "ours_node_scores", "gnn", "gnn_task", "mlp", "rf"]
@@ -24,23 +24,19 @@ LABELS = {"ours": "Ours", "ours_all_earlier": "Ours, all-earlier edges",
 OURS_FAMILY = ["ours", "ours_all_earlier", "ours_node_scores"]  # the thesis' module and issue 24's variants of it
 
 
-def _ordered(values, order) -> list:
-    return [v for v in order if v in set(values)] + sorted(set(values) - set(order))
-
-
 @register_section("table_4_1")
 def table_4_1(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch4"]["table_4_1"]
     stats = mean_std(runs, ["method", "cell"], "sr")
-    cells = _ordered(stats["cell"], CELLS)
-    methods = _ordered(stats["method"], METHODS)
+    cells = thesis_cells(stats["cell"], CELLS)
+    methods = thesis_cells(stats["method"], METHODS)
     rows, csv = [], []
     for method in methods:
         row = {"method": LABELS.get(method, method)}
         for cell in cells:
             ours = stats[(stats.method == method) & (stats.cell == cell)]
             mean, std, n = ours.iloc[0][["mean", "std", "n"]] if len(ours) else (np.nan, np.nan, 0)
-            ref = thesis.get(method, [None] * 4)[CELLS.index(cell)] if cell in CELLS else None
+            ref = thesis_value(thesis.get(method), thesis["columns"], cell)  # None: a method or cell not run
             row[cell] = f"{fmt(mean, std)} (thesis {fmt(*ref) if ref else '–'})"
             csv.append(
                 {
@@ -65,7 +61,7 @@ def table_4_1(runs: pd.DataFrame) -> Section:
     ]
     if len(latency):
         ref_ms = thesis_results()["ch4"]["text"]["reasoning_latency_ms"]
-        lat = latency.reindex(_ordered(latency.index, CELLS)).round(3).reset_index()
+        lat = latency.reindex(thesis_cells(latency.index, CELLS)).round(3).reset_index()
         lat.columns = ["cell", "ms per decision, batch 1 (median)", "ms per decision, batched"]
         text += [
             "",
@@ -103,7 +99,8 @@ def _mlp_paragraph(stats: pd.DataFrame, thesis: dict, runs: pd.DataFrame) -> lis
         return []
     sr = {(m, c): stats[(stats.method == m) & (stats.cell == c)]["mean"].iloc[0]
           for m in ("ours", "mlp") for c in cells}
-    theirs = {m: " / ".join(f"{thesis[m][CELLS.index(c)][0]:.2f}" for c in cells) for m in ("ours", "mlp")}
+    theirs = {m: " / ".join(f"{thesis_value(thesis[m], thesis['columns'], c)[0]:.2f}" for c in cells)
+              for m in ("ours", "mlp")}
     here = {m: " / ".join(f"{sr[m, c]:.2f}" for c in cells) for m in ("ours", "mlp")}
     below = all(sr["mlp", c] < sr["ours", c] for c in cells)
     shuffle = {"True": "a random pending cell per episode", "False": "its own pending cell"}.get(
@@ -133,8 +130,8 @@ def _lambda_columns(runs: pd.DataFrame, case: str) -> dict[float, str]:
 @register_section("fig_4_7")
 def fig_4_7(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch4"]["figure_4_7"]
-    cells = _ordered(runs["cell"].unique(), CELLS)
-    methods = _ordered(runs["method"].unique(), METHODS)
+    cells = thesis_cells(runs["cell"].unique(), CELLS)
+    methods = thesis_cells(runs["method"].unique(), METHODS)
     records = []
     for case in ("case1", "case2"):
         for ratio, column in sorted(_lambda_columns(runs, case).items()):
@@ -331,7 +328,7 @@ def practical(runs: pd.DataFrame) -> Section:
         "order_size_4of5_case1_sr": (f"train {trained} -> test 4of5, CASE 1", generalise["4of5"]["case1"]),
         "order_size_4of5_case2_sr": (f"train {trained} -> test 4of5, CASE 2", generalise["4of5"]["case2"]),
     }
-    methods = _ordered(runs["method"].unique(), METHODS)
+    methods = thesis_cells(runs["method"].unique(), METHODS)
     rows, records = [], []
     for metric, (label, ref) in scenarios.items():
         row = {"scenario": label, "thesis (ours)": fmt(ref)}

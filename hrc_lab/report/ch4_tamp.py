@@ -8,7 +8,7 @@ import pandas as pd
 from hrc_lab.report.plots import success_bars
 from hrc_lab.report.runs import amount, keyed, mean_std
 from hrc_lab.report.sections import Section, register_section
-from hrc_lab.report.thesis import fmt, thesis_results
+from hrc_lab.report.thesis import fmt, thesis_cells, thesis_results, thesis_value
 
 CELLS = ["2of3", "3of3", "3of5", "4of5"]
 SYSTEMS = ["ours", "drl", "rm_rrt_connect"]
@@ -52,20 +52,20 @@ def _drl_training(runs: pd.DataFrame, cells: list[str]) -> list[str]:
 @register_section("table_4_3")
 def table_4_3(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch4"]["table_4_3"]
-    cells = [c for c in CELLS if c in set(runs.cell)]
+    cells = thesis_cells(runs.cell, CELLS)
     systems = [s for s in SYSTEMS if s in set(runs.method)]
     stats = {key: mean_std(runs, ["method", "cell"], key) for key in ("sr", "sr_case1", "sr_case2")}
     rows, csv = [], []
     for system in systems:
         row = {"system": LABELS[system]}
         for cell in cells:
-            i = CELLS.index(cell)
+            ref = thesis_value(thesis[system]["sr"], thesis["columns"], cell) or (None, None)  # None: not run
             mean, std = _stat(stats["sr"], system, cell)
-            row[f"{cell} SR"] = f"{fmt(mean, std)} ({fmt(*thesis[system]['sr'][i])})"
+            row[f"{cell} SR"] = f"{fmt(mean, std)} ({fmt(*ref)})"
             c1, c2 = _stat(stats["sr_case1"], system, cell)[0], _stat(stats["sr_case2"], system, cell)[0]
             row[f"{cell} CASE 1 / 2"] = f"{fmt(c1)} / {fmt(c2)}"
             csv.append({"system": system, "cell": cell, "sr_mean": mean, "sr_std": std, "sr_case1": c1,
-                        "sr_case2": c2, "thesis_sr": thesis[system]["sr"][i][0],
+                        "sr_case2": c2, "thesis_sr": ref[0],
                         "planning_ms_per_object": _mean(runs, system, "planning_ms_per_object", cell),
                         "steps_per_object": _mean(runs, system, "steps_per_object", cell),
                         "execution_s_per_object": _mean(runs, system, "execution_s_per_object", cell)})

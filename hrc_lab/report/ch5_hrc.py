@@ -7,7 +7,7 @@ import pandas as pd
 
 from hrc_lab.report.runs import amount, run_tables, spread
 from hrc_lab.report.sections import Section, register_section
-from hrc_lab.report.thesis import fmt, thesis_results
+from hrc_lab.report.thesis import fmt, thesis_cells, thesis_results
 
 CELLS = ["1goal", "2goals", "3goals"]
 
@@ -17,15 +17,16 @@ def per_cell(runs: pd.DataFrame, suffix: str, with_thesis: bool) -> tuple[list[d
     refusals, placement success and the completed assemblies; ``suffix`` "" (normal) or "_fast"."""
     thesis = thesis_results()["ch5"]["table_5_2"]
     rows, records = [], []
-    for cell in [c for c in CELLS if c in set(runs.cell)]:
+    for cell in thesis_cells(runs.cell, CELLS):
         part = runs[runs.cell == cell]
-        goals = int(cell[0])
+        goals = int(cell.split("goal")[0])  # "1goal", "3goals", a user's "10goals"
+        ref = thesis.get(f"goals_{goals}", [(None, None)] * 3)  # the thesis' AD, SG, SC; None: a count not run
         sessions = int(part.n_fast_sessions.sum() if suffix else part.n_sessions.sum())
         row = {"goals": goals, "seeds": len(part), "sessions": sessions}
         for k, (metric, title) in enumerate((("ad_acc", "AD %"), ("sg_acc", "SG %"), ("sc_acc", "SC %"))):
             mean, std = (100 * v for v in spread(part, metric + suffix))
-            ref = thesis[f"goals_{goals}"][k]
-            row[title] = fmt(mean, std, 1) + (f" ({ref[0]} ± {ref[1]})" if with_thesis else "")
+            thesis_text = "–" if ref[k][0] is None else f"{ref[k][0]} ± {ref[k][1]}"
+            row[title] = fmt(mean, std, 1) + (f" ({thesis_text})" if with_thesis else "")
             records.append({"goals": goals, "sessions": suffix or "normal", "metric": metric, "mean": mean,
                             "std": std})
         row["robot commands"] = int(part.get(f"robot_commands{suffix}", pd.Series(dtype=float)).sum())

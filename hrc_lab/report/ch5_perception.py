@@ -8,7 +8,7 @@ from matplotlib.figure import Figure
 
 from hrc_lab.report.runs import amount, setting, setting_number, spread
 from hrc_lab.report.sections import Section, register_section
-from hrc_lab.report.thesis import fmt, thesis_results
+from hrc_lab.report.thesis import fmt, thesis_cells, thesis_results
 
 METHODS = {
     "hand_lstm_fcn": "Ours: MediaPipe + LSTM-FCN + VGG-style CNN",
@@ -90,15 +90,15 @@ def _bars(frame: pd.DataFrame) -> Figure:
 def table_5_2(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch5"]["table_5_2"]
     rows, records = [], []
-    for cell in [c for c in CELLS if c in set(runs.cell)]:
+    for cell in thesis_cells(runs.cell, CELLS):
         part = runs[runs.cell == cell]
-        goals = int(cell[0])
-        ref = thesis[f"goals_{goals}"]
+        goals = int(cell.split("goal")[0])  # "1goal", "3goals", a user's "10goals"
+        ref = thesis.get(f"goals_{goals}", [(None, None)] * 3)  # the thesis' AD, SG, SC; None: a count not run
         row = {"goals": goals, "seeds": len(part), "sessions": int(part.n_sessions.sum())}
         for (metric, title), (ref_mean, ref_std) in zip((("ad_acc", "AD %"), ("sg_acc", "SG %"), ("sc_acc", "SC %")),
                                                         ref):
             mean, std = (100 * v for v in spread(part, metric))
-            row[title] = f"{fmt(mean, std, 1)} ({ref_mean} ± {ref_std})"
+            row[title] = f"{fmt(mean, std, 1)} ({'–' if ref_mean is None else f'{ref_mean} ± {ref_std}'})"
             records.append({"goals": goals, "metric": metric, "mean": mean, "std": std})
         row["fast sessions"] = int(part.n_fast_sessions.sum())
         for metric, title in (("ad_acc_fast", "AD % fast"), ("sg_acc_fast", "SG % fast"), ("sc_acc_fast", "SC % fast")):

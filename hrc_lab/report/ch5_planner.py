@@ -10,13 +10,13 @@ import pandas as pd  # noqa: E402
 
 from hrc_lab.report.runs import amount, mean_std  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
-from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
+from hrc_lab.report.thesis import fmt, thesis_cells, thesis_results  # noqa: E402
 
 CELLS = ["1goal", "2goals", "3goals"]
 
 
 def _cells(runs: pd.DataFrame) -> list[str]:
-    return [c for c in CELLS if c in set(runs.cell)]
+    return thesis_cells(runs.cell, CELLS)
 
 
 @register_section("fig_5_7")
@@ -84,10 +84,11 @@ def table_5_2_planner(runs: pd.DataFrame) -> Section:
     for cell in _cells(runs):
         part = runs[runs.cell == cell]
         sg, sc = part.sg_acc * 100, part.sc_acc * 100
-        ref = thesis[f"goals_{cell[0]}"]
+        goals = cell.split("goal")[0]  # "1goal", "3goals", a user's "10goals"
+        ref = thesis.get(f"goals_{goals}", [(None, None)] * 3)  # the thesis' AD, SG, SC; None: a count not run
         rows.append(
             {
-                "goals": cell[0],
+                "goals": goals,
                 "SG (%)": fmt(sg.mean(), sg.std(ddof=0), 1) + f" (thesis {fmt(*ref[1], 1)})",
                 "SC (%)": fmt(sc.mean(), sc.std(ddof=0), 1) + f" (thesis {fmt(*ref[2], 1)})",
                 "assembly / screw events per seed": f"{part.n_assembly_events.mean():.0f} / "
@@ -96,7 +97,7 @@ def table_5_2_planner(runs: pd.DataFrame) -> Section:
             }
         )
         records.append(
-            {"goals": cell[0], "sg_mean": sg.mean(), "sc_mean": sc.mean(), "latency_ms": part.latency_ms.median()}
+            {"goals": goals, "sg_mean": sg.mean(), "sc_mean": sc.mean(), "latency_ms": part.latency_ms.median()}
         )
     text = [
         "Planner columns of Table 5.2 with perfect action labels: "

@@ -14,7 +14,7 @@ import pandas as pd  # noqa: E402
 from hrc_lab.grasp.diagnostics import FAILURE_CAUSES  # noqa: E402
 from hrc_lab.report.runs import amount, histories, keyed, run_tables, setting, setting_number, spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
-from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
+from hrc_lab.report.thesis import fmt, thesis_results, thesis_value  # noqa: E402
 
 METHODS = {
     "gnn_att": "GNN_Att (ours)",
@@ -184,8 +184,9 @@ def table_6_2_single(runs: pd.DataFrame) -> Section:
         row = {"method": METHODS[method]}
         for count in counts:
             mean, std = spread(runs[runs.method == method], f"acc_{count}")
-            ref = thesis["single_image"][thesis["columns"].index(str(count))] if method == "gnn_att" else None
-            row[f"{count} objects"] = fmt(mean, std, 3) + (f" ({ref})" if ref is not None else "")
+            ref = thesis_value(thesis["single_image"], thesis["columns"], count)  # None: a count it did not run
+            row[f"{count} objects"] = fmt(mean, std, 3) + (f" ({'–' if ref is None else ref})"
+                                                           if method == "gnn_att" else "")
             records.append({"method": method, "objects": count, "mean": mean, "std": std})
         rows.append(row)
     text = [

@@ -9,7 +9,7 @@ import pandas as pd
 from hrc_lab.grasp.diagnostics import ROBOT_FAILURES
 from hrc_lab.report.runs import amount, spread
 from hrc_lab.report.sections import Section, register_section
-from hrc_lab.report.thesis import fmt, thesis_results
+from hrc_lab.report.thesis import fmt, thesis_results, thesis_value
 
 ROBOT_FAILURES_TEXT = (
     "*detection*, *graspability*, *solution*, *other*: the single-image answer of an iteration was wrong, judged "
@@ -27,8 +27,8 @@ def table_6_2_robot(runs: pd.DataFrame) -> Section:
     records = []
     for count in counts:
         mean, std = spread(runs, f"acc_{count}")
-        ref = thesis["robot_grasping"][thesis["columns"].index(str(count))]
-        row[f"{count} objects"] = f"{fmt(mean, std, 3)} ({ref})"
+        ref = thesis_value(thesis["robot_grasping"], thesis["columns"], count)  # None: a count it did not run
+        row[f"{count} objects"] = f"{fmt(mean, std, 3)} ({'–' if ref is None else ref})"
         records.append({"objects": count, "mean": mean, "std": std, "thesis": ref})
     causes = sorted({c.split("_", 1)[1].rsplit("_", 1)[0] for c in runs.columns if c.startswith("fail_")},
                     key=lambda c: ROBOT_FAILURES.index(c) if c in ROBOT_FAILURES else len(ROBOT_FAILURES))
