@@ -272,3 +272,32 @@ def test_shared_facts_are_interpolations(compose_config):
     assert grasp.grasp.detector.image_size == 192
     perception = validate_config(compose_config("experiment=ch5/fig_5_6", "env.video.window=30"))
     assert perception.perception.window == 30
+
+
+def test_a_users_own_config_file_makes_a_variant(compose_config, tmp_path):
+    from hydra.core.hydra_config import HydraConfig
+
+    from hrc_lab.cli import job_tags
+
+    def tags(*overrides: str) -> dict[str, str]:
+        cfg = compose_config("experiment=ch4/table_4_1", *overrides, return_hydra_config=True)
+        HydraConfig.instance().set_config(cfg)
+        try:
+            return job_tags()
+        finally:
+            HydraConfig.instance().cfg = None
+
+    # the user's folder is searched after conf/ (as `--config-dir <dir>` is); env/my_cell.yaml exists only there
+    users_dir = f"hydra.searchpath=[file://{tmp_path}]"
+    (tmp_path / "env").mkdir()
+    cell = tmp_path / "env" / "my_cell.yaml"
+    cell.write_text("defaults:\n  - package_to_order_4of5\n  - _self_\n\nn_objects: 6\n")
+    mine = tags(users_dir, "env=my_cell")  # env is a sweep key of the experiment: only the file makes the variant
+    assert mine["variant"] != "default"
+    assert mine["variant_overrides"].startswith(f"hydra.searchpath {tmp_path} (env/my_cell.yaml@")
+    assert tags(users_dir, "env=my_cell", "seed=3")["variant"] == mine["variant"]
+    cell.write_text(cell.read_text().replace("n_objects: 6", "n_objects: 7"))
+    assert tags(users_dir, "env=my_cell")["variant"] not in ("default", mine["variant"])
+    # the same folder, but every file composed is the repository's: the default protocol
+    (tmp_path / "env" / "package_to_order_4of5.yaml").write_text("defaults:\n  - package_to_order\n\nn_objects: 9\n")
+    assert tags(users_dir, "env=package_to_order_4of5")["variant"] == "default"
