@@ -122,7 +122,9 @@ def test_report_keeps_default_rows_and_gives_each_ablation_its_own_section(store
     assert "0.10 ± 0.00" in row_of(ablation) and "0.90" not in ablation and "3of5" not in ablation
     # the exact ablation: the sweep keys' values its jobs used, then its own overrides
     rerun = f"env=package_to_order_4of5 reasoning=ours seed=0 {ABLATION}"
-    assert f"Reproduce: `hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib {rerun}`" in markdown
+    # each section's Reproduce line is inside it, under its heading (issue 44: it stood above the next heading)
+    assert ablation.split("\n")[2] == f"Reproduce: `hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib {rerun}`"
+    assert default.split("\n")[2] == "Reproduce: `hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib`"
     assert markdown.index(TITLE + "\n") < markdown.index(f"{TITLE} — ablation")
     assert markdown.count("— ablation:") == 1
     assert "0.55" not in markdown and "0.35" not in markdown  # RUNNING and KILLED runs never read
@@ -480,3 +482,21 @@ def test_every_committed_report_table_has_as_many_header_cells_as_columns(report
     text = (ROOT / "reports" / report).read_text()
     for line, header, delimiter in markdown_tables(text):
         assert cells(header) == cells(delimiter), f"{report}:{line}: {header[:120]}"
+
+
+def test_sections_of_the_earlier_layout_are_read_in_todays():
+    """A report written when the Reproduce line stood above its section's heading is read with the line moved under
+    the heading, so --update keeps such a section in today's layout."""
+    from hrc_lab.report.build import previous_sections
+
+    earlier = ("# title\n\nintro\n\nReproduce: `hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib`\n\n"
+               "## Table 4.1\n\nRuns: sweep a (1 run)\n\ntable\n\n"
+               "Reproduce: `hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib seed=1 x=2`\n\n"
+               "## Table 4.1 — ablation: x=2\n\nRuns: sweep b (1 run)\n\nother\n")
+    found = previous_sections(earlier, [("ch4/table_4_1", "table_4_1")])["table_4_1"]
+    assert [heading for heading, _ in found] == ["## Table 4.1", "## Table 4.1 — ablation: x=2"]
+    assert found[0][1] == ("## Table 4.1\n\nReproduce: `hrc-lab experiment=ch4/table_4_1 hydra/launcher=joblib`\n\n"
+                           "Runs: sweep a (1 run)\n\ntable\n")
+    assert found[1][1].startswith("## Table 4.1 — ablation: x=2\n\nReproduce: `hrc-lab experiment=ch4/table_4_1 "
+                                  "hydra/launcher=joblib seed=1 x=2`\n\nRuns: sweep b")
+    assert previous_sections(found[0][1] + "\n" + found[1][1], [("ch4/table_4_1", "table_4_1")])["table_4_1"] == found

@@ -45,23 +45,37 @@ ABLATION_MARK = " — ablation: "  # in an ablation section's title, after the t
 
 
 def previous_sections(markdown: str, parts: list[tuple[str, str]]) -> dict[str, list[tuple[str, str]]]:
-    """The sections of a report written by :func:`build_topic`, per table: (heading line, text from its
-    "Reproduce:" line to the next section's), in their order; a table's "No finished default runs" note is none."""
+    """The sections of a report written by :func:`build_topic`, per table: (heading line, text from its heading to
+    the next section's), in their order; a table's "No finished default runs" note is none. A section's table is
+    the one whose command its "Reproduce:" line (two lines below the heading) runs; reports written before that
+    line moved into its section (it stood two lines above the heading) are read too, and returned in today's
+    layout."""
     lines = markdown.splitlines()
     commands = {COMMANDS.get(table, experiment): table for experiment, table in parts}
-    starts = []  # (line index, table) of each section's "Reproduce:" line
+
+    def table_of(line: str) -> str | None:
+        command = line.removeprefix("Reproduce: `").split("`", 1)[0]
+        return next((t for c, t in commands.items() if command == c or command.startswith(c + " ")), None)
+
+    starts = []  # (first line, heading line, table) of each section
     for i, line in enumerate(lines):
-        if line.startswith("Reproduce: `") and i + 2 < len(lines) and lines[i + 2].startswith("## "):
-            command = line.removeprefix("Reproduce: `").split("`", 1)[0]
-            table = next((t for c, t in commands.items() if command == c or command.startswith(c + " ")), None)
-            starts.append((i, table))
-        elif line.startswith("## ") and i + 2 < len(lines) and lines[i + 2].startswith("No finished default runs"):
-            starts.append((i, None))
+        if not line.startswith("## "):
+            continue
+        below = lines[i + 2] if i + 2 < len(lines) else ""
+        if below.startswith("Reproduce: `"):
+            starts.append((i, i, table_of(below)))
+        elif i >= 2 and lines[i - 2].startswith("Reproduce: `"):  # the earlier layout
+            starts.append((i - 2, i, table_of(lines[i - 2])))
+        elif below.startswith("No finished default runs"):
+            starts.append((i, i, None))
     sections: dict[str, list[tuple[str, str]]] = {}
-    for (start, table), (end, _) in zip(starts, [*starts[1:], (len(lines), None)], strict=True):
-        if table is not None:
-            text = "\n".join(lines[start:end]).rstrip("\n") + "\n"
-            sections.setdefault(table, []).append((lines[start + 2], text))
+    for (start, heading, table), (end, _, _) in zip(starts, [*starts[1:], (len(lines), 0, None)], strict=True):
+        if table is None:
+            continue
+        body = lines[start:end]
+        if start != heading:  # Reproduce, blank, heading -> heading, blank, Reproduce
+            body[0], body[2] = body[2], body[0]
+        sections.setdefault(table, []).append((lines[heading], "\n".join(body).rstrip("\n") + "\n"))
     return sections
 
 
@@ -117,8 +131,9 @@ def rerun_arguments(runs: pd.DataFrame, overrides: str) -> str:
     return " ".join([*swept, overrides])
 
 
-def write_section(section: Section, folder: Path, tracking_uri: str, stem: str) -> str:
-    """Save the section's table, figures and copied artifacts under ``folder``; return its markdown with images."""
+def write_section(section: Section, folder: Path, tracking_uri: str, stem: str, command: str | None = None) -> str:
+    """Save the section's table, figures and copied artifacts under ``folder``; return its markdown with images,
+    the ``command`` that re-runs it (if given) under its heading."""
     folder.mkdir(parents=True, exist_ok=True)
     section.table.to_csv(folder / f"{stem}.csv", index=False)
     images = []
@@ -134,7 +149,8 @@ def write_section(section: Section, folder: Path, tracking_uri: str, stem: str) 
     links = "\n".join(f"![{name}]({folder.name}/{name})" for name in images)
     links += "".join(f"\n\n[{name}]({folder.name}/{name})" for name in files)
     sources = f"{section.sources}\n\n" if section.sources else ""
-    return f"## {section.title}\n\n{sources}{section.markdown}\n\n{links}\n"
+    reproduce = f"Reproduce: `{command}`\n\n" if command else ""
+    return f"## {section.title}\n\n{reproduce}{sources}{section.markdown}\n\n{links}\n"
 
 
 def build_topic(topic: str, tracking_uri: str, out_dir: Path, sweep: str | None = None,
@@ -176,9 +192,9 @@ def build_topic(topic: str, tracking_uri: str, out_dir: Path, sweep: str | None 
             body.append(f"## {table}\n\nNo finished default runs {missing}\n")
         for variant, overrides, section in sections:  # default first, then each ablation in its own section
             ablation = variant != DEFAULT_VARIANT
-            body.append(f"Reproduce: `{command}{' ' + overrides if ablation and overrides else ''}`\n")
             stem = f"{table}_{variant}" if ablation else table
-            body.append(write_section(section, out_dir / topic, tracking_uri, stem))
+            rerun = f"{command}{' ' + overrides if ablation and overrides else ''}"
+            body.append(write_section(section, out_dir / topic, tracking_uri, stem, rerun))
         body.extend(text for heading, text in kept if ABLATION_MARK in heading)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(body))

@@ -45,7 +45,7 @@ class SweepSummary(Callback):
 
     @staticmethod
     def _summarise(config: DictConfig) -> None:
-        from hrc_lab.report.build import build_sections, write_section
+        from hrc_lab.report.build import COMMANDS, build_sections, write_section
         from hrc_lab.tracking import LoggerConfig, RunTracker
 
         sweep_dir = Path(config.hydra.sweep.dir)
@@ -57,9 +57,11 @@ class SweepSummary(Callback):
             print(f"hrc-lab: no finished runs in sweep {sweep_dir}", file=sys.stderr)
             return
         parts = []
-        for variant, _, section in sections:
+        for variant, overrides, section in sections:
             stem = config.table if variant == "default" else f"{config.table}_{variant}"
-            parts.append(write_section(section, sweep_dir / "summary", uri, stem))
+            command = COMMANDS.get(str(config.table), f"hrc-lab experiment={config.name}")
+            rerun = f"{command} {overrides}" if variant != "default" and overrides else command
+            parts.append(write_section(section, sweep_dir / "summary", uri, stem, rerun))
         markdown = "\n".join(parts)
         (sweep_dir / "summary.md").write_text(markdown)
         logger = LoggerConfig(tracking_uri=uri, artifact_root=config.logger.artifact_root)
