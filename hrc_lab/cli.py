@@ -236,6 +236,13 @@ def _hydra_main(cfg: DictConfig) -> float | None:
     except RunInterrupted as err:
         print(f"hrc-lab: {err}; the MLflow run is marked KILLED (resume with resume_from=<run id>)", file=sys.stderr)
         sys.exit(err.exit_code)
+    except Exception as err:
+        from hrc_lab.tracking import TrackingUnavailable  # imported by run() already (kept off the config path)
+
+        if not isinstance(err, TrackingUnavailable):
+            raise
+        print(f"hrc-lab: {err}", file=sys.stderr)
+        sys.exit(1)
     return metrics.get("sr")  # the value an Optuna sweeper would optimise
 
 

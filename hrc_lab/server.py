@@ -54,8 +54,19 @@ def port_free(port: int, host: str = "127.0.0.1") -> bool:
 
 
 def healthy(url: str, timeout: float = 2.0) -> bool:
+    """MLflow's process answers (``/health``; it says OK with its database gone)."""
     try:
         with urllib.request.urlopen(f"{url}/health", timeout=timeout) as response:
+            return response.status == 200
+    except (urllib.error.URLError, OSError):
+        return False
+
+
+def database_answers(url: str, timeout: float = 5.0) -> bool:
+    """The server can read its database: a one-experiment search through MLflow's REST API succeeds."""
+    try:
+        with urllib.request.urlopen(f"{url}/api/2.0/mlflow/experiments/search?max_results=1",
+                                    timeout=timeout) as response:
             return response.status == 200
     except (urllib.error.URLError, OSError):
         return False
@@ -263,8 +274,12 @@ def start(root: Path, db_uri: str | None, host: str, port: int, pg_port: int, ti
     root.mkdir(parents=True, exist_ok=True)
     state = read_state(root)
     if state and alive(state.get("mlflow_pid"), state.get("mlflow_start")):
-        raise ServerError(f"already running: {state['tracking_uri']} (pid {state['mlflow_pid']}); "
-                          f"hrc-lab-server stop --dir {root}")
+        if database_answers(state["tracking_uri"]):
+            raise ServerError(f"already running: {state['tracking_uri']} (pid {state['mlflow_pid']}); "
+                              f"hrc-lab-server stop --dir {root}")
+        stop(root)  # half dead (e.g. its database was killed): stop what is left, then start both again
+    elif state:
+        stop(root)  # MLflow is gone; stop a database it left running and forget the old state
     if not port_free(port, "::1" if host == "::1" else "127.0.0.1"):
         raise ServerError(f"port {port} is in use on {host}; choose another --port")
     if os.geteuid() == 0:
@@ -307,17 +322,20 @@ def status(root: Path) -> tuple[bool, str]:
         return False, f"not running (no {state_file(root)})"
     up = alive(state.get("mlflow_pid"), state.get("mlflow_start"))
     answers = up and healthy(state["tracking_uri"])
+    reads = answers and database_answers(state["tracking_uri"])
     lines = [f"mlflow: {'running' if up else 'not running'} (pid {state.get('mlflow_pid')}), "
-             f"{'answers' if answers else 'does not answer'} on {state['tracking_uri']}"]
+             f"{'answers' if answers else 'does not answer'} on {state['tracking_uri']}"
+             + ("" if reads or not answers else "; its database does not answer: `hrc-lab-server start` restarts "
+                                                 "both, then `hrc-lab-runs stale` marks the interrupted runs")]
     if state.get("pg_data"):
         pid = pg_running(Path(state["pg_data"]))
         running = f"running (pid {pid})" if pid else "not running"
         lines.append(f"postgres: {running} on 127.0.0.1:{state['pg_port']}, data {state['pg_data']}")
     else:
         lines.append("database: given by --db-uri")
-    if answers:
+    if reads:
         lines.append(f"logger.tracking_uri={state['tracking_uri']}")
-    return bool(answers), "\n".join(lines)
+    return bool(reads), "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:

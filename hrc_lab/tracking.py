@@ -13,14 +13,64 @@ import time
 from pathlib import Path
 
 import pandas as pd
+import requests
 from lightning.pytorch.loggers import MLFlowLogger
 from mlflow.entities import Metric, Param
+from mlflow.exceptions import MlflowException
 from mlflow.tracking import MlflowClient
 from omegaconf import DictConfig, OmegaConf
 
 from hrc_lab.config import LoggerConfig
 from hrc_lab.interrupts import RunInterrupted
 from hrc_lab.processes import machine_identity, process_start
+
+# A job logging to a tracking server gives up on it within ~30 s (MLflow's defaults retry for minutes: 7 retries,
+# backoff factor 2, 120 s per request); each is a default the user's environment may set otherwise.
+SERVER_REQUEST_ENV = {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": "2", "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
+                      "MLFLOW_HTTP_REQUEST_TIMEOUT": "10"}
+
+
+class TrackingUnavailable(RuntimeError):
+    """The tracking server did not answer; the message names it and what to do."""
+
+
+class ServerClient:
+    """An ``MlflowClient`` of a tracking server whose failures to reach the server (or the server's to reach its
+    database) raise :class:`TrackingUnavailable` with a message naming the server, instead of MLflow's traceback."""
+
+    def __init__(self, tracking_uri: str) -> None:
+        for key, value in SERVER_REQUEST_ENV.items():
+            os.environ.setdefault(key, value)
+        self._client, self.tracking_uri = MlflowClient(tracking_uri), tracking_uri
+
+    def __getattr__(self, name: str):
+        attribute = getattr(self._client, name)
+        if not callable(attribute):
+            return attribute
+
+        def call(*args, **kwargs):
+            try:
+                return attribute(*args, **kwargs)
+            except (MlflowException, requests.RequestException) as err:
+                if isinstance(err, MlflowException) and not unreachable(err):
+                    raise
+                raise TrackingUnavailable(
+                    f"the tracking server {self.tracking_uri} did not answer ({str(err).splitlines()[0][:300]}). "
+                    "Check it with `hrc-lab-server status`, restart it with `hrc-lab-server start`, then "
+                    "`hrc-lab-runs stale --tracking-uri ...` marks the runs it lost KILLED") from err
+
+        return call
+
+
+def unreachable(err: MlflowException) -> bool:
+    """An MLflow error that says the server could not be reached or could not serve (5xx), not a refused request."""
+    return str(err).startswith("API request to") or err.get_http_status_code() >= 500
+
+
+def tracking_client(tracking_uri: str) -> MlflowClient | ServerClient:
+    """The client of a resolved tracking URI: a :class:`ServerClient` for a server (http, https), else MLflow's."""
+    served = tracking_uri.startswith(("http://", "https://"))
+    return ServerClient(tracking_uri) if served else MlflowClient(tracking_uri)
 
 
 def resolve_tracking_uri(uri: str) -> str:
@@ -83,7 +133,7 @@ class RunTracker:
     def __init__(self, cfg: LoggerConfig, experiment: str, run_name: str, tags: dict[str, str],
                  parent_run_id: str | None = None) -> None:
         self.tracking_uri = resolve_tracking_uri(cfg.tracking_uri)
-        self.client = MlflowClient(self.tracking_uri)
+        self.client = tracking_client(self.tracking_uri)
         self.experiment_id = ensure_experiment(self.client, experiment, cfg.artifact_root)
         self.run_name = run_name
         self.tags = {**tags, **process_identity(), **machine_identity()}

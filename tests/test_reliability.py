@@ -3,10 +3,13 @@ exit 143/130, stale RUNNING runs, checkpoints that resume to the same result, ru
 
 from __future__ import annotations
 
+import http.server
 import os
+import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -301,3 +304,63 @@ def test_a_users_own_config_file_makes_a_variant(compose_config, tmp_path):
     # the same folder, but every file composed is the repository's: the default protocol
     (tmp_path / "env" / "package_to_order_4of5.yaml").write_text("defaults:\n  - package_to_order\n\nn_objects: 9\n")
     assert tags(users_dir, "env=package_to_order_4of5")["variant"] == "default"
+
+
+class _DeadDatabase(http.server.BaseHTTPRequestHandler):
+    """An MLflow server whose database is gone: /health answers, every API call is a 503."""
+
+    def do_GET(self):  # noqa: N802 (http.server's name)
+        self._answer(200 if self.path == "/health" else 503)
+
+    def do_POST(self):  # noqa: N802
+        self._answer(503)
+
+    def _answer(self, code: int) -> None:
+        self.send_response(code)
+        self.send_header("Content-Type", "text/plain")
+        self.end_headers()
+        self.wfile.write(b"OK" if code == 200 else b"database unavailable")
+
+    def log_message(self, *args) -> None:
+        pass
+
+
+@pytest.fixture
+def dead_database_server():
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _DeadDatabase)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    yield f"http://127.0.0.1:{server.server_address[1]}"
+    server.shutdown()
+
+
+def test_a_job_gives_up_on_a_dead_tracking_server_within_30_s_naming_it(dead_database_server, tmp_path, monkeypatch):
+    """Issue 49: with the server's database killed, jobs failed after 282-534 s of retries with MLflow's traceback."""
+    from hrc_lab.server import database_answers, healthy
+    from hrc_lab.tracking import SERVER_REQUEST_ENV, TrackingUnavailable
+
+    for key in SERVER_REQUEST_ENV:  # the defaults apply (and are undone after the test)
+        monkeypatch.setenv(key, "")
+        monkeypatch.delenv(key)
+    start = time.monotonic()
+    with pytest.raises(TrackingUnavailable, match=re.escape(dead_database_server)) as raised:
+        RunTracker(LoggerConfig(tracking_uri=dead_database_server, artifact_root=str(tmp_path)), "exp", "run", {})
+    assert time.monotonic() - start < 30
+    assert "hrc-lab-server status" in str(raised.value) and "hrc-lab-runs stale" in str(raised.value)
+    # what `hrc-lab-server status` reads: the process answers, its database does not
+    assert healthy(dead_database_server) and not database_answers(dead_database_server)
+
+
+def test_server_status_fails_when_its_database_does_not_answer(dead_database_server, tmp_path):
+    """``hrc-lab-server status`` exits non-zero when MLflow's process answers but its database does not."""
+    import json
+
+    from hrc_lab.processes import process_start
+    from hrc_lab.server import main, state_file, status
+
+    state = {"tracking_uri": dead_database_server, "mlflow_pid": os.getpid(),
+             "mlflow_start": process_start(os.getpid()), "db_uri": "postgresql+psycopg://postgres@127.0.0.1:1/mlflow"}
+    state_file(tmp_path).write_text(json.dumps(state))
+    running, text = status(tmp_path)
+    assert not running and "database does not answer" in text and "hrc-lab-server start" in text
+    assert main(["status", "--dir", str(tmp_path)]) == 3
