@@ -450,7 +450,14 @@ def _cell(spec: ClutterSpec) -> _Cell:
 
 
 def _close_renderers() -> None:
-    """Free the GL contexts while the display is still up (else ``Renderer.__del__`` complains at exit)."""
+    """Free the GL contexts while the display is still up (else ``Renderer.__del__`` complains at exit). When an exit
+    handler registered later (a robot cell's renderer, a video recorder) terminated the display first, the contexts
+    went with it: the renderers then drop their handles, so their ``__del__`` does not free them again."""
     for cell in _CELLS.values():
-        cell.renderer.close()
+        try:
+            cell.renderer.close()
+        except Exception:  # EGL_NOT_INITIALIZED: the display is gone, and every context on it
+            if cell.renderer._gl_context is not None:
+                cell.renderer._gl_context._context = None
+            cell.renderer._gl_context = cell.renderer._mjr_context = None
     _CELLS.clear()
