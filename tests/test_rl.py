@@ -262,6 +262,17 @@ def test_demonstrations_fill_the_demo_buffer_with_whole_relabelled_episodes():
     assert n_demo == 4 and len(data.actions) == 16
 
 
+def test_a_later_subtasks_demonstrations_move_its_own_object():
+    """In subtask 1 of the two-object correction the first object starts at its goal: the expert moves the second
+    one only (it used to run the whole plan from the first object and never reached the second: 0 of 50 succeeded)."""
+    rl = RLConfig(**{**TINY, "steps_per_subtask": 40, "suction": "auto", "delta_r": 0.01})
+    env = make_goal_env(correction_cell(task="two_object", sim=SimSettings(yaw_action=True)), rl, seed=20_000,
+                        subtask=1)
+    agent = build_ddpg_her(rl, env, seed=0)
+    assert add_demonstrations(agent, env, 2) >= 0.5  # the fig_3_13 config: 9 of 10 (2026-12-03)
+    assert env.goal_objects == [env.cell.expert_plan()[1]]
+
+
 def test_demonstrations_are_cloned_then_the_critic_warms_up_before_the_actor_follows_it(env):
     agent = build_ddpg_her(RLConfig(**TINY, bc_pretrain_steps=40, critic_warmup_steps=5, learning_rate=1e-2), env,
                            seed=0)

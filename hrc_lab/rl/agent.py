@@ -247,8 +247,8 @@ def add_demonstrations(agent: HerDDPG, env: HRCGoalEnv, episodes: int, seed: int
     (Table 4.3; Nair et al. 2018, :mod:`hrc_lab.rl.ddpg`); HER relabels them like the agent's own. Each episode runs
     the env's full horizon (the arm holds still, suction off, once the expert is done), so its transitions look
     like the agent's; with ``rl.suction=auto`` the expert's suction commands are dropped and the env's release on
-    a support lets the part go. The first scene is drawn with ``seed``. Returns the share of demonstrations that
-    ended in success."""
+    a support lets the part go. In error correction the expert moves the subtask's objects only (``goal_objects``).
+    The first scene is drawn with ``seed``. Returns the share of demonstrations that ended in success."""
     from hrc_lab.env.robot.expert import ScriptedExpert
 
     if not (env.suction_action or env.release_on_support):
@@ -260,7 +260,8 @@ def add_demonstrations(agent: HerDDPG, env: HRCGoalEnv, episodes: int, seed: int
     successes = []
     for k in range(episodes):
         obs, _ = env.reset(seed=seed if k == 0 else None)
-        expert = ScriptedExpert(env.cell)
+        # error correction: the subtask's objects only (those of earlier subtasks start at their goals)
+        expert = ScriptedExpert(env.cell, objects=env.goal_objects if env.correction else None)
         truncated, info, episode = False, {}, []
         while not truncated:
             step = expert.act()

@@ -42,11 +42,12 @@ class ExpertStep:
 
 
 class ScriptedExpert:
-    """Call :meth:`act` once per control step until it returns None."""
+    """Call :meth:`act` once per control step until it returns None. ``objects``: the objects it moves, in order
+    (default: the cell's whole plan, ``expert_plan()``; e.g. one subtask's object in the RL goal env)."""
 
     def __init__(self, env: HRCCell, max_steps_per_subgoal: int = 30, tolerance: float = 0.006,
                  damping: float = 0.05, placement_noise: float = 0.0,
-                 rng: np.random.Generator | None = None) -> None:
+                 rng: np.random.Generator | None = None, objects: list[int] | None = None) -> None:
         if placement_noise < 0:
             raise ValueError(f"placement_noise must be >= 0 m, got {placement_noise}")
         if placement_noise and rng is None:
@@ -57,10 +58,11 @@ class ScriptedExpert:
         self.max_steps = max_steps_per_subgoal
         self.tolerance = tolerance
         self.damping = damping
+        self.objects = None if objects is None else list(objects)  # None: the cell's whole plan
         self.reset()
 
     def reset(self) -> None:
-        self.plan = list(self.env.expert_plan())
+        self.plan = list(self.env.expert_plan()) if self.objects is None else list(self.objects)
         self.move = 0
         self.stage = PICK
         self.index = 0
