@@ -1,5 +1,5 @@
-# Shortcuts; each target is one documented command (see README.md).
-.PHONY: install quick test test-all reproduce reproduce-ch4 report-ch4 reproduce-ch5 reproduce-ch5-perception reproduce-ch5-hrc reproduce-ch6 reproduce-ch6-robot reproduce-data mlflow-ui
+# Shortcuts; each target is one documented command (see README.md and the docs/ site).
+.PHONY: install quick test test-all reproduce reproduce-ch4 report-ch4 reproduce-ch5 reproduce-ch5-perception reproduce-ch5-hrc reproduce-ch6 reproduce-ch6-robot reproduce-data mlflow-ui docs
 
 install:
 	bash scripts/install.sh
@@ -43,3 +43,6 @@ reproduce-data: install  ## every demonstration set (runs/data/*.hdf5), the vide
 
 mlflow-ui:  ## http://127.0.0.1:5000
 	.venv/bin/mlflow ui --backend-store-uri sqlite:///runs/mlflow.db --host 127.0.0.1 --port 5000 --workers 1
+
+docs: install  ## the documentation site into site/ (mkdocs.yml; CI builds it --strict; browse: .venv/bin/mkdocs serve)
+	.venv/bin/mkdocs build --strict

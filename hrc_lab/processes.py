@@ -27,7 +27,8 @@ def machine_identity() -> dict[str, str]:
     """Tags that say what a job's wall times and float rounding depend on: the CPU (``cpu``: its model name and
     family/model/stepping as /proc/cpuinfo gives them), the cores this process may use, and the instruction set torch
     dispatches its CPU kernels to (``cpu_capability``, e.g. AVX2 or AVX512): two machines of the same size can
-    differ several times in speed, and a job's numbers within their seed spread (README, "Wall times")."""
+    differ several times in speed, and a job's numbers within their seed spread (docs/reproduce.md, "Wall times
+    depend on the machine")."""
     import torch
 
     fields: dict[str, str] = {}

@@ -35,7 +35,9 @@ def missing_requirement() -> str | None:
     return None
 
 
-pytestmark = pytest.mark.skipif(missing_requirement() is not None, reason=f"no team server: {missing_requirement()}")
+# slow (~95 s: PostgreSQL and MLflow start twice): CI runs it in its slow step (.ci/run)
+pytestmark = [pytest.mark.slow,
+              pytest.mark.skipif(missing_requirement() is not None, reason=f"no team server: {missing_requirement()}")]
 
 
 def free_port() -> int:

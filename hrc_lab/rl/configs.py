@@ -64,13 +64,13 @@ class RLConfig:
     buffer_size: int = 1_000_000
     # HER paper: observations and goals normalised by running mean / std, clipped to +-5 (hrc_lab.rl.normalization).
     # Without it DDPG + HER did not learn even a reach in the UR5e's joint space (scripts/rl_reach_check.py: SR 0.00
-    # at every evaluation to 400 episodes; with it 0.70 after 50 and 0.60-1.00 after; README's Ch.3 RL section)
+    # at every evaluation to 400 episodes; with it 0.70 after 50 and 0.60-1.00 after; docs/chapters/ch3_rl.md)
     normalize_inputs: bool = True
     # HER paper's DDPG (hrc_lab.rl.ddpg.HerDDPG): the actor's penalty on its [-1, 1] actions, the share of
     # exploration steps that take a uniformly random action, and critic targets clipped to [-1 / (1 - gamma), 0].
     # Without them (0, 0, false: SB3's DDPG) the policy saturated at the action bounds and drove the cup into the
     # table; with them the placing half (rl.start=held, delta_r 0.05, lambda 0.7) reached evaluation SR 0.1-0.5
-    # after 120 episodes, from 0.00 (README's Ch.3 RL section)
+    # after 120 episodes, from 0.00 (docs/chapters/ch3_rl.md)
     action_l2: float = 1.0
     random_eps: float = 0.3
     clip_return: bool = True
