@@ -133,9 +133,13 @@ def job_tags() -> dict[str, str]:
     """The sweep, the task overrides and the variant of the running Hydra job (``variant_overrides``: the extra
     overrides, then each user config source with the files taken from it, e.g. ``--config-dir /abs/dir
     (env/my_cell.yaml@1a2b3c4d)``)."""
+    from hrc_lab.search import is_optuna
+
     hydra_cfg = HydraConfig.get()
     overrides = list(hydra_cfg.overrides.task)
-    sweep_keys = list((hydra_cfg.sweeper.get("params") or {}).keys())
+    # A grid sweep's keys are the experiment's protocol; an Optuna trial's sampled and fixed values are a variant of
+    # its own (the search's keys are hydra.sweeper.params too), so no trial enters a report's default table.
+    sweep_keys = [] if is_optuna(hydra_cfg) else list((hydra_cfg.sweeper.get("params") or {}).keys())
     own = own_configs(hydra_cfg)
     variant, extra = variant_of(overrides, sweep_keys, [item for items in own.values() for item in items])
     shown = extra + [f"{where} ({', '.join(items)})" for where, items in own.items()]
@@ -196,6 +200,7 @@ def _run(cfg: DictConfig) -> dict[str, float]:
 
     from hrc_lab.experiments import PROTOCOLS
     from hrc_lab.experiments.context import RunContext
+    from hrc_lab.search import trial_tags
 
     torch.set_num_threads(cfg.num_threads)
     pl.seed_everything(cfg.seed, workers=True, verbose=False)
@@ -210,6 +215,7 @@ def _run(cfg: DictConfig) -> dict[str, float]:
         "scenario": scenario,
         "seed": str(cfg.seed),
         **job_tags(),
+        **trial_tags(cfg, HydraConfig.get()),  # study, objective, search_keys under hydra/sweeper=optuna
     }
     output_dir = Path(HydraConfig.get().runtime.output_dir)
     name = run_name(cfg, scenario, tags["variant"])
@@ -243,7 +249,20 @@ def _hydra_main(cfg: DictConfig) -> float | None:
             raise
         print(f"hrc-lab: {err}", file=sys.stderr)
         sys.exit(1)
-    return metrics.get("sr")  # the value an Optuna sweeper would optimise
+    return objective_value(cfg, metrics)
+
+
+def objective_value(cfg: DictConfig, metrics: dict[str, float]) -> float | None:
+    """The value an Optuna sweeper optimises: the metric ``search.objective`` names (conf/search; docs/search.md),
+    else ``sr``. Under the Optuna sweeper a missing metric is a config error naming the metrics there are."""
+    from hrc_lab.search import is_optuna, objective_of
+
+    objective = objective_of(cfg) or "sr"
+    if objective not in metrics and is_optuna(HydraConfig.get()):
+        print(f"hrc-lab: config error: search.objective: {objective!r} is not a metric of experiment {cfg.name}; "
+              f"it returns {sorted(metrics)}", file=sys.stderr)
+        sys.exit(2)
+    return metrics.get(objective)
 
 
 COMPOSITION_ERRORS = (ConfigCompositionException, MissingConfigException, OverrideParseException)

@@ -36,6 +36,7 @@ TOP_LEVEL_KEYS = {
     "logger",
     "paths",
     "resume_from",
+    "search",
 }
 
 
@@ -173,6 +174,10 @@ def validate_config(cfg: DictConfig) -> ValidatedConfig:
     for key, minimum in (("seed", 0), ("num_threads", 1)):
         if not isinstance(cfg.get(key), int) or cfg.get(key) < minimum:
             raise ConfigError(f"{key}: must be an integer >= {minimum}, got {cfg.get(key)!r}")
+    search = cfg.get("search") or {}
+    unknown = sorted(set(search.keys()) - {"name", "objective"})  # conf/search/*.yaml (hrc_lab.search.SEARCH_KEYS)
+    if unknown:
+        raise ConfigError(f"search.{unknown[0]}: unknown key; expected name, objective")
     trainer = typed(TrainerConfig, cfg.trainer, "trainer")
     _check_combination(cfg)
     resume_from = cfg.get("resume_from")
