@@ -2,11 +2,14 @@
 a 2-job joblib sweep logging to it over http, a report built from it, then stop, start again on the same data and
 the runs are still there. Skips when PostgreSQL or the psycopg driver (the ``team`` extra) is not installed."""
 
+import json
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import tempfile
+import time
 from pathlib import Path
 
 import pytest
@@ -101,6 +104,17 @@ def test_server_serves_a_sweep_and_keeps_its_runs_across_a_restart(server_dir, t
         assert sorted(r.data.tags["method"] for r in jobs) == ["mlp", "ours"]
         assert all(r.info.status == "FINISHED" for r in jobs)
         assert {"tables/table_4_1.csv"} <= {a.path for a in client.list_artifacts(jobs[0].info.run_id, "tables")}
+
+        # its database killed under it (issue 49): status says so and exits 3, start brings both back with the runs
+        os.kill(json.loads((server_dir / "server.json").read_text())["pg_pid"], signal.SIGKILL)
+        time.sleep(2)
+        status = subprocess.run([*control, "status", "--dir", str(server_dir)], capture_output=True, text=True,
+                                env=env, timeout=60)
+        assert status.returncode == 3 and "database does not answer" in status.stdout, status.stdout
+        assert f"logger.tracking_uri={uri}" in call(start, 120)
+        runs = [r for r in MlflowClient(uri).search_runs([experiment.experiment_id])
+                if r.data.tags.get("kind") != "summary"]
+        assert len(runs) == 2
     finally:
         if (server_dir / "server.json").exists():
             subprocess.run([*control, "stop", "--dir", str(server_dir)], env=env, timeout=90)
