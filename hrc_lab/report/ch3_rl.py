@@ -11,6 +11,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from hrc_lab.report.runs import PARAM_PREFIX, amount, histories, spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
@@ -57,6 +58,7 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
             rows.append(row)
         ax.set_title(scenario.replace("_", " "), fontsize=9)
         ax.set_xlabel("epoch (subtasks in sequence)")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_ylabel("success rate (evaluation)")
         ax.set_ylim(-0.02, 1.02)
         ax.legend(fontsize=7)
