@@ -257,7 +257,7 @@ def objective_value(cfg: DictConfig, metrics: dict[str, float]) -> float | None:
     else ``sr``. Under the Optuna sweeper a missing metric is a config error naming the metrics there are."""
     from hrc_lab.search import is_optuna, objective_of
 
-    objective = objective_of(cfg) or "sr"
+    objective = objective_of(cfg)
     if objective not in metrics and is_optuna(HydraConfig.get()):
         print(f"hrc-lab: config error: search.objective: {objective!r} is not a metric of experiment {cfg.name}; "
               f"it returns {sorted(metrics)}", file=sys.stderr)

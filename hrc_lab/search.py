@@ -38,8 +38,12 @@ def study_name(hydra_cfg: DictConfig) -> str:
     return str(hydra_cfg.sweeper.get("study_name") or Path(hydra_cfg.sweep.dir).name)
 
 
-def objective_of(cfg: DictConfig) -> str | None:
-    return (cfg.get("search") or {}).get("objective")
+DEFAULT_OBJECTIVE = "sr"  # the success rate most protocols return; a search file names another
+
+
+def objective_of(cfg: DictConfig) -> str:
+    """The metric a trial reports to Optuna: ``search.objective``, else ``sr``."""
+    return (cfg.get("search") or {}).get("objective") or DEFAULT_OBJECTIVE
 
 
 def trial_tags(cfg: DictConfig, hydra_cfg: DictConfig) -> dict[str, str]:
@@ -53,17 +57,14 @@ def trial_tags(cfg: DictConfig, hydra_cfg: DictConfig) -> dict[str, str]:
 
 def check_search_space(config: DictConfig) -> None:
     """Raise :class:`ConfigError` naming the first bad entry of an Optuna sweep's config: a ``storage`` (optuna 2.10
-    with SQLAlchemy 2 opens none), no ``search.objective``, a
-    key of ``hydra.sweeper.params`` that is neither in the composed config nor a config group (unless added with
-    ``+``), a value the override grammar cannot parse, or an impossible range: ``interval(low, high)`` with
-    low >= high, a ``log`` interval with low <= 0, an empty ``range(start, stop, step)``, a ``choice()`` of nothing."""
+    with SQLAlchemy 2 opens none), a key of ``hydra.sweeper.params`` that is neither in the composed config nor a
+    config group (unless added with ``+``), a value the override grammar cannot parse, or an impossible range:
+    ``interval(low, high)`` with low >= high, a ``log`` interval with low <= 0, an empty ``range(start, stop, step)``,
+    a ``choice()`` of nothing."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.core.override_parser.types import ChoiceSweep, IntervalSweep, RangeSweep
     from hydra.errors import HydraException
 
-    if not objective_of(config):
-        raise ConfigError("search.objective: hydra/sweeper=optuna needs the metric a trial reports; select a search "
-                          "space (search=<name>, conf/search/) or set search.objective=<metric of the protocol>")
     if config.hydra.sweeper.get("storage"):
         raise ConfigError("hydra.sweeper.storage: optuna 2.10.1 (what hydra-optuna-sweeper 1.3.0 accepts) cannot open "
                           "a database beside mlflow's SQLAlchemy 2; leave it null (the trials are MLflow runs tagged "

@@ -11,7 +11,7 @@ from omegaconf import open_dict, read_write
 from hrc_lab.cli import variant_of
 from hrc_lab.config import validate_config
 from hrc_lab.registry import ConfigError
-from hrc_lab.search import check_search_space
+from hrc_lab.search import check_search_space, objective_of
 
 TINY = ["protocol.epochs=1", "rl.cycles_per_epoch=1", "rl.gradient_steps=5", "protocol.eval_episodes=2"]
 
@@ -44,9 +44,9 @@ def test_an_unknown_key_of_a_search_file_is_named(compose_config, tmp_path):
         cfg.hydra.sweeper.params["rl.hiden"] = "choice(64,128)"
     with pytest.raises(ConfigError, match=r"hydra\.sweeper\.params\.rl\.hiden"):
         check_search_space(cfg)
-    cfg = compose_config("experiment=rl/fetch", "hydra/sweeper=optuna", return_hydra_config=True)
-    with pytest.raises(ConfigError, match=r"search\.objective"):  # no search file: what to optimise is unknown
-        check_search_space(cfg)
+    cfg = compose_config("experiment=ch4/table_4_1", "hydra/sweeper=optuna", return_hydra_config=True)
+    check_search_space(cfg)  # no search file: the experiment's grid is the space, its "sr" the objective
+    assert objective_of(cfg) == "sr"
 
 
 def test_the_cli_exits_2_naming_the_bad_key_before_any_trial(cli_env, console_script, tmp_path):
