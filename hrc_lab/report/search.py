@@ -30,14 +30,16 @@ def study_trials(tracking_uri: str, experiment: str, study: str) -> pd.DataFrame
         if tags.get("kind") == "summary":  # (a != filter would drop the runs without a kind tag)
             continue
         keys = [k for k in tags.get("search_keys", "").split(",") if k]
+        chosen = dict(item.split("=", 1) for item in tags.get("overrides", "").split() if "=" in item)
         rows.append({"run_id": run.info.run_id, "run_name": run.info.run_name, "status": run.info.status,
                      "value": run.data.metrics.get(tags.get("objective", ""), float("nan")),
-                     **{key: _param(run.data.params, key) for key in keys}})
+                     **{key: chosen.get(key, _param(run.data.params, key)) for key in keys}})
     return pd.DataFrame(rows)
 
 
 def _param(params: dict[str, str], key: str) -> str | None:
-    """A search key's value in a run's logged config; a config group (e.g. ``grasp``) by its ``name``."""
+    """A search key's value in a run's logged config (when its override is not in the ``overrides`` tag); a config
+    group (e.g. ``grasp``) by its ``name``."""
     key = key.lstrip("+~")
     return params.get(key, params.get(f"{key}.name"))
 
