@@ -59,7 +59,6 @@ LEFT_OUT = {
     "ch4/table_4_1_quick": "a few-minute preview of ch4/table_4_1 (README command 1); its runs are kept apart",
     "data/collect": "one demonstration set chosen on the command line; collect_ch3 / collect_ch4 run every set",
     "ch5/annotate": "annotates a video given on the command line; reuses the detector cached by ch5/table_5_2",
-    "rl/fetch": "a public benchmark of the DRL agent (gymnasium-robotics' Fetch tasks), no thesis table or figure",
 }
 
 # An ablation section's table: "<table>_v<8 hex digits>.csv" (hrc_lab.report.build names it by its variant). The plan

@@ -305,9 +305,10 @@ class Table43Protocol:
     (Algorithm 2 for ours and RM+RRT-Connect, the deterministic policy for DRL; ``hrc_lab.experiments.ch4_tamp``).
     Ours and RM+RRT-Connect learn from CASE 1 only: the reasoning module from ``min_demos`` task episodes over every
     goal configuration (as Table 4.1), ours' motion module from ``demos`` robot demonstrations (as Table 4.2). DRL
-    trains ``drl_iterations`` episodes, CASE 1 or 2 drawn per episode, after ``drl_demos`` scripted-expert episodes
-    (either case) went into its replay buffer; an iteration is one episode of rl.steps_per_subtask x n control steps
-    followed by as many gradient steps. In the cells ``video_cells`` one
+    trains ``drl_iterations`` cycles of the HER reference implementation (:mod:`hrc_lab.rl.trainer`: a cycle is
+    rl.episodes_per_cycle episodes of rl.steps_per_subtask x n control steps, then rl.gradient_steps gradient steps),
+    CASE 1 or 2 drawn per episode, after ``drl_demos`` scripted-expert episodes (either case) went into its
+    demonstration buffer. In the cells ``video_cells`` one
     CASE 1 and one CASE 2 trial are rendered with the current decision written on the frames."""
 
     trials: int = 100
@@ -321,8 +322,8 @@ class Table43Protocol:
     drl_eval_episodes: int = 10
     checkpoint_every: int = 5
     # scripted-expert episodes in the DRL agent's replay buffer before it trains ("trained using demonstrations from
-    # both cases", Table 4.3; the thesis gives no count: 20 per case, as the TAMP's demonstrations); 0: none
-    drl_demos: int = 40
+    # both cases", Table 4.3; the thesis gives no count: 25 per case, as Fig. 3.13 gives each subtask 50); 0: none
+    drl_demos: int = 50
     # the goal configurations of ours' robot demonstrations: "fixed", one packing arrangement per selection (the k-th
     # lowest product into slot k, as Table 4.2 after 4.4.2.1), or "all" (every permutation)
     motion_demos: str = "fixed"
