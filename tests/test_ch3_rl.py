@@ -33,11 +33,11 @@ def test_experiment_config_errors_name_the_key(compose_config, experiment, overr
 
 
 TINY = ["hydra.mode=RUN", "env=error_correction_one_object_case1", "seed=0", "trainer.max_epochs=1",
-        "motion.steps=10", "motion.ndp.steps=10", "protocol.demos=2", "protocol.epochs=2",
+        "motion.steps=10", "motion.ndp.steps=10", "motion.classifier.steps=10", "protocol.demos=2", "protocol.epochs=2",
         "rl.cycles_per_epoch=1", "rl.episodes_per_cycle=1", "rl.gradient_steps=8", "protocol.eval_episodes=1",
         "protocol.checkpoint_every=1", "rl.steps_per_subtask=8", "rl.learning_starts=8", "rl.batch_size=8",
-        "rl.demo_batch_size=2", "rl.net_arch=[16]",
-        "rl.buffer_size=200"]
+        "rl.demo_batch_size=2", "rl.net_arch=[16]", "rl.buffer_size=200", "protocol.expert_demos=2",
+        "rl.bc_pretrain_steps=4", "rl.critic_warmup_steps=2"]
 
 
 def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_path, monkeypatch, capsys):
@@ -77,7 +77,7 @@ def test_fig_3_9_measures_the_distance_to_the_planners_subgoal(run_job):
     """Fig. 3.9's goal-state positional difference is |sub-goal - end effector| in both arms (the unguided arm's
     planner only tracks its sub-goals), one row per control step that still has its state (not the reset after
     the last), and the task-goal distance beside it."""
-    job = run_job("experiment=ch3/fig_3_9", TINY[0], "env=error_correction_place", *TINY[2:6], "protocol.demos=2",
+    job = run_job("experiment=ch3/fig_3_9", TINY[0], "env=error_correction_place", *TINY[2:7], "protocol.demos=2",
                   "protocol.episodes=2", "rl.steps_per_subtask=8")
     metrics = job.metrics
     for arm in ("guided", "unguided"):

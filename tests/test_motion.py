@@ -13,7 +13,7 @@ import torch
 
 from hrc_lab.env.robot.factory import make_env
 from hrc_lab.env.robot.settings import ErrorCorrectionConfig, PackageToOrderConfig
-from hrc_lab.motion.configs import STAGE_STARTS, NDPConfig, SubgoalConfig
+from hrc_lab.motion.configs import STAGE_STARTS, ClassifierConfig, NDPConfig, SubgoalConfig
 from hrc_lab.motion.networks import NeuralDynamicPlanner, TaskConditionedVI, variational_loss
 from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier, base_frame, build_subgoal_planner, jitter_r
 from hrc_lab.motion.two_level import (
@@ -142,7 +142,7 @@ def test_correction_rollout_of_a_few_steps():
     demos = expert_demos(env, 2, k=5, mode="resample")
     pairs = correction_pairs(demos)
     assert pairs.x.shape[1] == 12 and len(pairs.x) % 5 == 0
-    classifier = StageClassifier(4, hidden=16, steps=20).fit(*classifier_pairs(demos), tiny_trainer)
+    classifier = StageClassifier(ClassifierConfig(hidden=16, steps=20), 4).fit(*classifier_pairs(demos), tiny_trainer)
     planner = build_subgoal_planner(SubgoalConfig(steps=20), 4).fit(pairs.x, pairs.labels, pairs.subgoals,
                                                                      tiny_trainer)
     ndp = DynamicPlanner(NDPConfig(steps=20, hidden=16), env.max_joint_step, env.base_position())
@@ -185,7 +185,8 @@ def test_the_selected_planner_input_keeps_the_labelled_object_green_and_r():
                         "protocol.placement_oracle=true"]),
 ])
 def test_motion_experiment_end_to_end(experiment, overrides, run_job):
-    tiny = ["hydra.mode=RUN", "trainer.max_epochs=1", "motion.steps=10", "motion.ndp.steps=10"]
+    tiny = ["hydra.mode=RUN", "trainer.max_epochs=1", "motion.steps=10", "motion.ndp.steps=10",
+            "motion.classifier.steps=10"]
     job = run_job(f"experiment={experiment}", *tiny, *overrides)
     assert "planning_ms=" in job.log
     if experiment == "ch3/table_3_1":

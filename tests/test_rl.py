@@ -16,7 +16,7 @@ from hydra.core.global_hydra import GlobalHydra
 from stable_baselines3.common.callbacks import CallbackList
 
 from hrc_lab.env.robot.settings import ErrorCorrectionConfig, PackageToOrderConfig, SimSettings
-from hrc_lab.motion.configs import NDPConfig, SubgoalConfig
+from hrc_lab.motion.configs import ClassifierConfig, NDPConfig, SubgoalConfig
 from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier, build_subgoal_planner
 from hrc_lab.registry import ConfigError, named
 from hrc_lab.rl import RLS
@@ -52,7 +52,8 @@ CONF = Path(__file__).resolve().parents[1] / "conf"
 STEPS = 8  # control steps per subtask in these tests (40 in the thesis)
 # small networks and batches; two episodes of warm-up, then cycles of one episode and one gradient step per step
 TINY = dict(steps_per_subtask=STEPS, learning_starts=2 * STEPS, batch_size=16, net_arch=[32, 32], buffer_size=2000,
-            cycles_per_epoch=1, episodes_per_cycle=1, gradient_steps=STEPS, demo_batch_size=4)
+            cycles_per_epoch=1, episodes_per_cycle=1, gradient_steps=STEPS, demo_batch_size=4, bc_pretrain_steps=8,
+            critic_warmup_steps=2)
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -274,8 +275,8 @@ def test_a_later_subtasks_demonstrations_move_its_own_object():
 
 
 def test_demonstrations_are_cloned_then_the_critic_warms_up_before_the_actor_follows_it(env):
-    agent = build_ddpg_her(RLConfig(**TINY, bc_pretrain_steps=40, critic_warmup_steps=5, learning_rate=1e-2), env,
-                           seed=0)
+    cfg = RLConfig(**{**TINY, "bc_pretrain_steps": 40, "critic_warmup_steps": 5}, learning_rate=1e-2)
+    agent = build_ddpg_her(cfg, env, seed=0)
     add_demonstrations(agent, env, 1, seed=1)
     learn_episodes(agent, 2)  # the warm-up of random actions: no update yet
     batch = agent.demo_buffer.sample(64)
@@ -407,7 +408,7 @@ def two_level_guide(env):
     x = np.hstack([np.tile(cell.object_positions().ravel(), (64, 1)), cell.eef_position() + rng.normal(0, 0.05,
                                                                                                           (64, 3))])
     labels = rng.integers(0, 4, 64)
-    classifier = StageClassifier(4, hidden=16, steps=5).fit(x, labels, trainer)
+    classifier = StageClassifier(ClassifierConfig(hidden=16, steps=5), 4).fit(x, labels, trainer)
     subgoals = cell.eef_position() + [0.3, 0.0, 0.1] + rng.normal(0, 0.02, (64, 3))
     planner = build_subgoal_planner(SubgoalConfig(kind="mlp", steps=5, hidden=16), 4).fit(x, labels, subgoals,
                                                                                            trainer)

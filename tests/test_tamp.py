@@ -124,7 +124,8 @@ TINY = ["hydra.mode=RUN", "env=package_to_order_2of3", "trainer.max_epochs=1", "
     ("rm_rrt_connect", ["reasoning.steps=10", "motion.timeout_s=2"]),
     ("drl", ["protocol.drl_iterations=2", "rl.cycles_per_epoch=1", "rl.episodes_per_cycle=1", "rl.gradient_steps=4",
              "protocol.drl_demos=1", "rl.demo_batch_size=2", "protocol.drl_eval_episodes=1", "rl.steps_per_subtask=4",
-             "rl.learning_starts=4", "rl.batch_size=8"]),
+             "rl.learning_starts=4", "rl.batch_size=8", "rl.net_arch=[16]", "rl.buffer_size=500",
+             "rl.bc_pretrain_steps=4", "rl.critic_warmup_steps=2"]),
 ])
 def test_table_4_3_job_end_to_end(system, overrides, run_job, tmp_path):
     job = run_job("experiment=ch4/table_4_3", f"tamp={system}", *TINY, *overrides)

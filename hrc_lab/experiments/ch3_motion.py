@@ -47,7 +47,8 @@ def train_two_level(ctx: RunContext, env, demos, planner_input: str = "full"):
     from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier
     from hrc_lab.motion.two_level import classifier_pairs, correction_pairs, dynamics_pairs
 
-    classifier = StageClassifier(4, seed=ctx.seed).fit(*classifier_pairs(demos), lambda: ctx.trainer("classifier"))
+    classifier = StageClassifier(ctx.cfg.motion.classifier, 4, seed=ctx.seed).fit(*classifier_pairs(demos),
+                                                                               lambda: ctx.trainer("classifier"))
     pairs = correction_pairs(demos, tuple(ctx.cfg.protocol.stage_starts), planner_input)
     planner = MOTIONS.build(ctx.cfg.motion, n_labels=4, n_subgoals=ctx.cfg.protocol.subgoals_per_stage, seed=ctx.seed)
     planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"), pairs.indices)

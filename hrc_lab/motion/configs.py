@@ -38,6 +38,22 @@ class NDPConfig:
 
 
 @dataclass
+class ClassifierConfig:
+    """Task classifier c(x) of the Ch.3 two-level planner (3.2.1): an MLP from the raw observation to the stage label,
+    trained with cross-entropy (hrc_lab.motion.subgoal.StageClassifier). Sizes are not given in the thesis."""
+
+    hidden: int = 64
+    lr: float = 1e-3
+    steps: int = 2000  # gradient steps
+    batch_size: int = 128
+
+    def __post_init__(self) -> None:
+        for key in ("hidden", "lr", "steps", "batch_size"):
+            if getattr(self, key) <= 0:
+                raise ValueError(f"motion.classifier.{key} must be > 0, got {getattr(self, key)}")
+
+
+@dataclass
 class SubgoalConfig:
     """A sub-goal regressor: ``kind`` vi (Fig. 3.2, Eq. 3.1-3.4), mlp (deterministic) or gpr (scikit-learn RBF);
     ``use_labels`` False is the thesis' VI baseline without task labels."""
@@ -70,6 +86,7 @@ class SubgoalConfig:
     # Not in the thesis.
     relative_to_r: bool = False
     ndp: NDPConfig = field(default_factory=NDPConfig)
+    classifier: ClassifierConfig = field(default_factory=ClassifierConfig)  # Ch.3's c(x); Ch.4 labels its stages
 
     def __post_init__(self) -> None:
         if self.kind not in ("vi", "mlp", "gpr"):

@@ -9,7 +9,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from hrc_lab.motion.configs import NDPConfig, SubgoalConfig
+from hrc_lab.motion.configs import ClassifierConfig, NDPConfig, SubgoalConfig
 from hrc_lab.motion.networks import FullObservationActor, NeuralDynamicPlanner, TaskConditionedVI, variational_loss
 from hrc_lab.training import accuracy, fit_tensors
 
@@ -201,17 +201,15 @@ def build_subgoal_planner(cfg: SubgoalConfig, n_labels: int, n_subgoals: int = 1
 class StageClassifier:
     """c(x): the task (stage) label from the raw observation (3.2.1), an MLP trained with cross-entropy."""
 
-    def __init__(self, n_labels: int, hidden: int = 64, lr: float = 1e-3, steps: int = 2000, batch_size: int = 128,
-                 seed: int = 0) -> None:
-        self.n_labels, self.hidden, self.lr, self.steps, self.batch_size, self.seed = (
-            n_labels, hidden, lr, steps, batch_size, seed)
+    def __init__(self, cfg: ClassifierConfig, n_labels: int, seed: int = 0) -> None:
+        self.cfg, self.n_labels, self.seed = cfg, n_labels, seed
 
     def fit(self, x: np.ndarray, labels: np.ndarray, trainer_factory: Callable) -> StageClassifier:
         from hrc_lab.motion.networks import TaskClassifier
 
         torch.manual_seed(self.seed)
         self.scale = Standardiser(x)
-        self.network = TaskClassifier(x.shape[1], self.n_labels, self.hidden)
+        self.network = TaskClassifier(x.shape[1], self.n_labels, self.cfg.hidden)
 
         def objective(net, batch):
             xb, yb = batch
@@ -219,7 +217,8 @@ class StageClassifier:
             return F.cross_entropy(logits, yb), {"acc": accuracy(logits, yb)}
 
         tensors = [_tensor(self.scale(x)), torch.as_tensor(labels, dtype=torch.long)]
-        fit_tensors(self.network, objective, tensors, self.lr, self.steps, self.batch_size, trainer_factory)
+        fit_tensors(self.network, objective, tensors, self.cfg.lr, self.cfg.steps, self.cfg.batch_size,
+                    trainer_factory)
         return self
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
