@@ -125,7 +125,7 @@ def test_goal_env_goal_is_the_labelled_objects_pose_and_the_step_reward_agrees(e
     obs, reward, terminated, truncated, info = env.step(np.zeros(4))
     assert reward == env.compute_reward(obs["achieved_goal"], obs["desired_goal"], {}) == -1.0
     assert not terminated and not truncated and info["is_success"] is False and info["collided"] is False
-    cell._set_object(1, cell.goals[1])  # blue at its goal: R = 0
+    cell.set_object_pose(1, cell.goals[1])  # blue at its goal: R = 0
     cell.sim.forward()
     obs, reward, *_ = env.step(np.zeros(4))
     assert reward == 0.0 and env.goal_distances()[0] < env.delta_r
@@ -657,13 +657,13 @@ def test_yaw_is_scored_under_the_square_parts_fourfold_symmetry(env, monkeypatch
     for goal_env, turned in ((env, 0.0), (raw, np.pi / 2)):  # the part at its goal, a quarter turn
         goal_env.reset(seed=3)
         part = goal_env.goal_objects[0]
-        goal_env.cell._set_object(part, goal_env.cell.goals[part], yaw=np.pi / 2)
+        goal_env.cell.set_object_pose(part, goal_env.cell.goals[part], yaw=np.pi / 2)
         goal_env.cell.sim.forward()
         obs, reward, *_ = goal_env.step(np.zeros(4))
         assert obs["achieved_goal"][3] == pytest.approx(turned, abs=0.01)
         assert reward == (0.0 if turned == 0.0 else -1.0)
         assert goal_env.goal_distances()[0] == pytest.approx(turned, abs=0.01)
-        goal_env.cell._set_object(part, goal_env.cell.goals[part], yaw=np.pi / 4 + 0.1)  # wraps to -pi / 4 + 0.1
+        goal_env.cell.set_object_pose(part, goal_env.cell.goals[part], yaw=np.pi / 4 + 0.1)  # wraps to -pi / 4 + 0.1
         goal_env.cell.sim.forward()
         assert goal_env._achieved()[3] == pytest.approx(-np.pi / 4 + 0.1 if turned == 0.0 else np.pi / 4 + 0.1)
     # a part with a rectangular footprint has twofold symmetry: order 2 from yaw_symmetry=4, 1 from 1

@@ -48,7 +48,7 @@ def wall_crossing(env, motion: RRTConnectMotion) -> tuple[np.ndarray, np.ndarray
     """Joint configurations with the lip 3 cm above the box floor level, 7 cm outside its south wall and 5 cm
     inside it: the straight joint-space line between them runs the cup through the wall."""
     env.reset()
-    box, half_y = env.box_position(), env._box_half_extent()[1]
+    box, half_y = env.box_position(), env.box_half_extent()[1]
     outside = motion.ik(env, box + [0.0, -half_y - 0.07, 0.03], env.commanded_qpos()[:3])
     inside = motion.ik(env, box + [0.0, -half_y + 0.05, 0.03], outside)
     assert outside is not None and inside is not None

@@ -69,7 +69,7 @@ def test_joint_deltas_are_clipped_to_five_degrees_and_keep_the_tool_down(ec):
     assert np.allclose(change[:3], np.deg2rad([5, -5, 0]), atol=1e-9)
     for _ in range(5):
         ec.step(np.array([0.0, 0.0, 0.0, -1.0]))
-    tool_axis = ec.sim.data.site_xmat[ec._grip_site].reshape(3, 3)[:, 2]
+    tool_axis = ec.sim.data.site_xmat[ec.robots[0].eef_site_id["right"]].reshape(3, 3)[:, 2]
     assert tool_axis[2] < -0.99  # the tool (site z axis) points down
 
 
@@ -223,23 +223,20 @@ def test_lean_step_is_robosuites_step_bit_for_bit():
     assert lean.step(np.zeros(5))[0] is None  # no observation unless asked for
 
 
-def test_the_contact_table_finds_the_collisions_classify_finds():
+def test_the_contact_table_finds_the_collisions_the_rule_finds():
     """Driving the arm down into the table: at every physics substep the table-based scan adds exactly the events
-    that classifying every contact both ways (the scan before the table) names, in the same order."""
+    that judging every contact by the cell's rule (``forbidden_contact``; the scan before the table) names, in the
+    same order."""
     env = ErrorCorrection(task="place", seed=0)
     env.reset()
-    scan, model, checked = env._scan_contacts, env.sim.model._model, []
+    scan, checked = env._scan_contacts, []  # the scan and its per-step events are the cell's internals under test
 
     def scan_and_compare():
         expected = list(env._step_collisions)
-        for g1, g2 in env.sim.data._data.contact.geom.tolist():
-            for a, b in ((g1, g2), (g2, g1)):
-                kind = env._classify(a, b, env.suction.held)
-                if kind:
-                    event = f"{kind}: {model.geom(a).name} / {model.geom(b).name}"
-                    if event not in expected:
-                        expected.append(event)
-                    break
+        for a, b in env.sim.data._data.contact.geom.tolist():
+            event = env.forbidden_contact(a, b, env.suction.held)
+            if event is not None and event not in expected:
+                expected.append(event)
         scan()
         assert env._step_collisions == expected
         checked.append(len(expected))
@@ -248,3 +245,22 @@ def test_the_contact_table_finds_the_collisions_classify_finds():
     for _ in range(40):
         env.step(np.array([0.0, 0.087, 0.0, 1.0]))  # shoulder down, suction requested
     assert len(checked) == 400 and max(checked) >= 2 and env.collisions
+
+
+def test_the_public_contact_rule_scratch_state_and_success(pto):
+    """The cell's rule as RRT-Connect applies it (``pick_target``: an empty cup may touch only the product it
+    picks), a scratch state that poses the arm without touching the live simulation, and ``success``."""
+    pto.reset()
+    cup, product = min(pto.cup_geoms), min(pto.object_geoms(0))
+    assert product in pto.object_geoms() and not pto.cup_geoms & (pto.arm_geoms | pto.mount_geoms)
+    assert pto.forbidden_contact(cup, product, held=-1) is None  # the cell allows an empty cup on a product
+    assert pto.forbidden_contact(cup, product, held=-1, pick_target=0) is None
+    assert pto.forbidden_contact(product, cup, held=-1, pick_target=1).startswith("cup-product1: ")
+    assert pto.forbidden_contact(cup, product, held=1).startswith("cup-product1: ")  # the cup holds another
+    live = pto.sim.get_state().flatten()
+    arm = pto.arm_qpos() + [0.3, -0.2, 0.1, 0.1, 0.0, 0.0]
+    scratch = pto.scratch_state()
+    data = scratch.set_arm_qpos(arm)
+    np.testing.assert_allclose(data.site_xpos[pto.robots[0].eef_site_id["right"]], pto.lip_kinematics(arm)[0])
+    np.testing.assert_array_equal(pto.sim.get_state().flatten(), live)
+    assert pto.success() is False  # nothing packed yet

@@ -24,7 +24,7 @@ class ExpertMotion:
         for i, subgoal in enumerate(expert.designed_subgoals(obj, stage)):
             suction = 1.0 if stage == PLACE or i > 0 else -1.0
             for _ in range(expert.max_steps):
-                if expert._reached(subgoal):
+                if expert.reached(subgoal):
                     break
                 env.step(np.array([*expert.joint_step(subgoal), suction]))
                 out.steps += 1

@@ -10,18 +10,19 @@ Our set-up (what the thesis leaves open):
   joint limits (OMPL ``RealVectorStateSpace(3)``). Wrist 1 and 2 follow the tool-down rule of
   :meth:`~hrc_lab.env.robot.cell.HRCCell.joint_targets` (wrist1 = -pi/2 - shoulder - elbow, which must stay within
   its limit; wrist2 = -pi/2); wrist 3 keeps its angle.
-- Collision checking: q is set in a scratch ``mujoco.MjData`` copy of the live scene (a held product moves rigidly
-  with the cup, at its pose relative to the cup when the stage starts), then ``mj_kinematics`` and
-  ``mj_collision``. A contact of the arm, the cup or the held product is forbidden by the cell's own rule
-  (:meth:`~hrc_lab.env.robot.cell.HRCCell._classify`: arm links touch nothing but the arm, its mount and the cup;
-  a held product touches nothing but the cup and its supports) and, while nothing is held, by the cup touching a
-  product other than the one being picked. The scratch model's arm, cup and product geoms (and their bodies, for
-  the broadphase) get a contact margin of ``clearance_m``: planned paths keep that distance (the servo lags the
-  command and the weld of a held product gives); the straight descents and lifts at the products are checked for
-  contact only. Its collision filter leaves only the pairs that can be forbidden (the moving robot or the held
-  product with anything else), so a check costs ~30 us. OMPL checks a motion every ``collision_resolution`` of
-  the space's extent (0.0005: ~0.5 deg, <= 8 mm of lip motion), so every configuration between two checked ones
-  is within ~4 mm of one of them, inside the clearance.
+- Collision checking: q is set in a scratch ``mujoco.MjData`` copy of the live scene
+  (:meth:`~hrc_lab.env.robot.cell.HRCCell.scratch_state`: a held product moves rigidly with the cup, at its pose
+  relative to the cup when the stage starts), then ``mj_kinematics`` and ``mj_collision``. A contact of the arm, the
+  cup or the held product is forbidden by the cell's own rule
+  (:meth:`~hrc_lab.env.robot.cell.HRCCell.forbidden_contact`: arm links touch nothing but the arm, its mount and the
+  cup; a held product touches nothing but the cup and its supports) and, while nothing is held, by the cup touching a
+  product other than the one being picked (the rule's ``pick_target``). The scratch model's arm, cup and product geoms
+  (and their bodies, for the broadphase) get a contact margin of ``clearance_m``: planned paths keep that distance
+  (the servo lags the command and the weld of a held product gives); the straight descents and lifts at the products
+  are checked for contact only. Its collision filter leaves only the pairs that can be forbidden (the moving robot or
+  the held product with anything else), so a check costs ~30 us. OMPL checks a motion every ``collision_resolution``
+  of the space's extent (0.0005: ~0.5 deg, <= 8 mm of lip motion), so every configuration between two checked ones is
+  within ~4 mm of one of them, inside the clearance.
 - Inverse kinematics: damped least squares on the MuJoCo Jacobian of the lip w.r.t. q
   (:meth:`~hrc_lab.env.robot.cell.HRCCell.lip_kinematics`, the scripted expert's step without its 5 deg cap),
   started from the current command; with three joints for a 3-D lip position the solution is the branch nearest
@@ -112,30 +113,22 @@ class CollisionChecker:
 
     ``model`` is the scratch model of :meth:`RRTConnectMotion.scratch_model`; a contact closer than ``clearance``
     (at most the model's margin) is forbidden when the cell's rule forbids it (``held``: the product in the cup,
-    moved with it) or when the cup touches a product other than ``target`` while nothing is held.
+    moved with it) or when the cup touches a product other than ``target`` while nothing is held
+    (:meth:`~hrc_lab.env.robot.cell.HRCCell.forbidden_contact` with ``pick_target=target``).
     """
 
     def __init__(self, env, model: mujoco.MjModel, held: int = -1, target: int = -1, clearance: float = 0.0) -> None:
-        live = env.sim.data._data
         self.env, self.model, self.held, self.target, self.clearance = env, model, held, target, clearance
-        self.data = mujoco.MjData(model)
-        self.data.qpos[:] = live.qpos
+        self.scratch = env.scratch_state(model, held)
+        self.data = self.scratch.data
         self.arm = env.commanded_qpos()
         joints = [model.joint(j).id for j in env.robots[0].robot_model.joints]
         self.low, self.high = model.jnt_range[joints[:4]].T
-        held_geoms = env._object_geoms[held] if held >= 0 else set()
+        held_geoms = env.object_geoms(held) if held >= 0 else frozenset()
         self.moving = np.zeros(model.ngeom, dtype=bool)
-        self.moving[list(env._arm_geoms | env._cup_geoms | held_geoms)] = True
-        self.products = np.array(sorted(env._geom_owner))
+        self.moving[list(env.arm_geoms | env.cup_geoms | held_geoms)] = True
+        self.products = np.array(sorted(env.object_geoms()))
         self.product_bits = np.where(np.isin(self.products, list(held_geoms)), 3, 0).astype(model.geom_contype.dtype)
-        if held >= 0:
-            cup, body = env.suction.cup, env._object_bodies[held]
-            self.rel_pos = live.xmat[cup].reshape(3, 3).T @ (live.xpos[body] - live.xpos[cup])
-            self.rel_quat = np.empty(4)
-            cup_inv = np.empty(4)
-            mujoco.mju_negQuat(cup_inv, live.xquat[cup])
-            mujoco.mju_mulQuat(self.rel_quat, cup_inv, live.xquat[body])
-            self.held_adr = model.jnt_qposadr[model.joint(env._object_joints[held]).id]
 
     def collision(self, q: np.ndarray) -> str | None:
         """What makes q invalid ("joint-limit" or the forbidden contact), or None."""
@@ -143,18 +136,10 @@ class CollisionChecker:
         arm = tool_down(self.arm, q)
         if np.any(arm[:4] < self.low) or np.any(arm[:4] > self.high):
             return "joint-limit"
-        model, data, env = self.model, self.data, self.env
+        model = self.model
         model.geom_contype[self.products] = self.product_bits  # a held product collides with everything,
         model.geom_conaffinity[self.products] = self.product_bits | 1  # resting ones with the robot only
-        data.qpos[env._arm_qpos] = arm
-        mujoco.mj_kinematics(model, data)
-        if self.held >= 0:
-            cup = env.suction.cup
-            quat = np.empty(4)
-            mujoco.mju_mulQuat(quat, data.xquat[cup], self.rel_quat)
-            data.qpos[self.held_adr:self.held_adr + 3] = data.xpos[cup] + data.xmat[cup].reshape(3, 3) @ self.rel_pos
-            data.qpos[self.held_adr + 3:self.held_adr + 7] = quat
-            mujoco.mj_kinematics(model, data)
+        data = self.scratch.set_arm_qpos(arm)
         mujoco.mj_collision(model, data)
         n = data.ncon
         if n == 0:
@@ -162,21 +147,10 @@ class CollisionChecker:
         geoms = data.contact.geom[:n]
         near = (self.moving[geoms[:, 0]] | self.moving[geoms[:, 1]]) & (data.contact.dist[:n] < self.clearance)
         for a, b in geoms[near]:
-            for x, y in ((a, b), (b, a)):
-                kind = self._forbidden(int(x), int(y))
-                if kind:
-                    return f"{kind}: {model.geom(x).name} / {model.geom(y).name}"
+            event = self.env.forbidden_contact(int(a), int(b), self.held, pick_target=self.target)
+            if event:
+                return event
         return None
-
-    def _forbidden(self, a: int, b: int) -> str | None:
-        env = self.env
-        if a in env._cup_geoms and self.held < 0:
-            owner = env._geom_owner.get(b)
-            if owner == self.target:
-                return None
-            if owner is not None:
-                return f"cup-{env.cell_objects[owner].name}"
-        return env._classify(a, b, self.held)
 
     def valid(self, q: np.ndarray) -> bool:
         return self.collision(q) is None
@@ -239,15 +213,15 @@ class RRTConnectMotion:
         live = env.sim.model._model
         if self._source is not live:
             model = copy.copy(live)
-            robot = [g for g in env._arm_geoms | env._cup_geoms if model.body_weldid[model.geom_bodyid[g]] != 0]
-            margined = robot + list(env._geom_owner)
+            robot = [g for g in env.arm_geoms | env.cup_geoms if model.body_weldid[model.geom_bodyid[g]] != 0]
+            margined = robot + list(env.object_geoms())
             model.geom_margin[margined] = self.cfg.clearance_m
             model.body_margin[model.geom_bodyid[margined]] = self.cfg.clearance_m  # the broadphase's, per body
             # contact pairs: the moving robot (type 1, affinity 2) with everything (type 0, affinity 1) but the robot
             # and its mount (0, 2), which the cell allows; a held product (3, 3) with everything (set per checker)
             solid = (model.geom_contype | model.geom_conaffinity) > 0
             model.geom_contype[solid], model.geom_conaffinity[solid] = 0, 1
-            fixed = list(env._arm_geoms | env._cup_geoms | env._mount_geoms)
+            fixed = list(env.arm_geoms | env.cup_geoms | env.mount_geoms)
             model.geom_contype[fixed], model.geom_conaffinity[fixed] = 0, 2
             model.geom_contype[robot], model.geom_conaffinity[robot] = 1, 2
             self._source, self._model = live, model

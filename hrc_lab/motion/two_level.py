@@ -239,7 +239,7 @@ def run_package(env, motion: TwoLevelMotion) -> Rollout:
         if np.linalg.norm(env.object_positions()[obj] - env.goals[obj]) > env.success_threshold:
             out.failure = "placement"  # the trial has failed (Eq. 4.7); stop here
             return out
-    out.success = bool(env._check_success())
+    out.success = bool(env.success())
     out.failure = "" if out.success else "placement"
     return out
 
@@ -294,11 +294,11 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
             env.step(RELEASE)
             out.steps += 1
             if placement_oracle:
-                env._set_object(obj, env.goals[obj])
+                env.set_object_pose(obj, env.goals[obj])
                 env.sim.forward()
         out.object_steps[obj] = out.object_steps.get(obj, 0) + out.steps - before
     settle(env)
-    out.success = bool(env._check_success())
+    out.success = bool(env.success())
     return out, env.object_positions()
 
 

@@ -276,6 +276,11 @@ class HRCGoalEnv(gym.Env):
         difference = (self._achieved() - self._start).reshape(-1, self.dims_per_object)[:, :3]
         return float(np.linalg.norm(difference, axis=1).max())
 
+    def desired_goal(self) -> np.ndarray:
+        """The episode's desired goal g, flat: [x, y, z(, yaw)] per goal object (the observation's
+        ``desired_goal`` before its float32 cast)."""
+        return self._desired.copy()
+
     def goal_distances(self) -> np.ndarray:
         """|P_obj - P_goal| of every goal object (its yaw error under its symmetry, as the reward's)."""
         difference = goal_differences(self._achieved(), self._desired, self.dims_per_object, self._yaw_orders())
@@ -298,7 +303,7 @@ class HRCGoalEnv(gym.Env):
                                  f"plan has {len(plan)} objects) or None (the whole plan), got {self.subtask}")
             else:
                 for done in plan[: self.subtask]:  # earlier subtasks succeeded: their objects are at their goals
-                    cell._set_object(done, cell.goals[done])
+                    cell.set_object_pose(done, cell.goals[done])
                 cell.sim.forward()
                 self.goal_objects = [plan[self.subtask]]
             if self.start == "held":
@@ -340,20 +345,9 @@ class HRCGoalEnv(gym.Env):
         if held != self._grip:  # a new grip
             self._grip, self._grip_z, self._lifted = held, float(rest_z[held]), False
         self._lifted = self._lifted or z >= self._grip_z + LIFT_M
-        if self._lifted and self._touches_support(held):
+        if self._lifted and cell.touching_support(held):
             cell.suction.release()
             self._cup_off, self._grip, self._lifted = True, -1, False
-
-    def _touches_support(self, obj: int) -> bool:
-        """Whether a geom of object ``obj`` is in contact with one of its allowed supports (MuJoCo's contact list
-        as the last physics substep left it)."""
-        cell = self.cell
-        data = cell.sim.data._data
-        if not data.ncon:
-            return False
-        first, second = np.asarray(data.contact.geom1[: data.ncon]), np.asarray(data.contact.geom2[: data.ncon])
-        part, supports = cell._object_geoms[obj], cell.allowed_supports(obj)
-        return any((a in part and b in supports) or (b in part and a in supports) for a, b in zip(first, second))
 
     def _pick(self, obj: int) -> None:
         """``rl.start=held``: the scripted expert's picking stage of ``obj`` (above it, down onto its top face, cup
@@ -376,9 +370,9 @@ class HRCGoalEnv(gym.Env):
 
     def _observation(self) -> np.ndarray:
         cell = self.cell
-        eef_quat = cell.sim.data.xquat[cell.sim.model._model.site_bodyid[cell._grip_site]]
         held = [float(cell.suction.held >= 0)]
-        return np.concatenate([cell.arm_qpos(), cell.eef_position(), eef_quat, self._poses().ravel(), held])
+        return np.concatenate([cell.arm_qpos(), cell.eef_position(), cell.eef_quaternion(), self._poses().ravel(),
+                               held])
 
     def _obs(self) -> dict[str, np.ndarray]:
         return {

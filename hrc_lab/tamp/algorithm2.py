@@ -126,7 +126,7 @@ def run_tamp(env, reasoner, motion, max_stages: int | None = None, on_decision=N
             if np.linalg.norm(env.object_positions()[obj] - env.goals[obj]) > env.success_threshold:
                 out.failure = "placement"
                 return out
-    out.success = bool(env._check_success())
+    out.success = bool(env.success())
     out.collisions = list(env.collisions)
     if not out.success:
         out.failure = "stages" if not all_packed(env) else ("collision" if env.collisions else "placement")

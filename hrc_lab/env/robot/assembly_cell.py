@@ -134,7 +134,7 @@ class AssemblyCell(HRCCell):
             xy = np.array([x + seen[part] * layout.bin_spacing, y]) + rng.uniform(-1, 1, 2) * layout.bin_jitter
             seen[part] += 1
             self.bin_slots[i] = [*xy, self.table_offset[2] + layout.part_half_sizes[part][2]]
-            self._set_object(i, self.bin_slots[i])
+            self.set_object_pose(i, self.bin_slots[i])
         self.assembled = {}
         self._plan = []
         self.goals = self.bin_slots.copy()
@@ -181,7 +181,7 @@ class AssemblyCell(HRCCell):
         if reason:
             return Placement(part, position, False, reason)
         index = self.in_bin(part)[0]
-        self._set_object(index, self.position_pose(position, part))
+        self.set_object_pose(index, self.position_pose(position, part))
         self.sim.forward()
         self.assembled[position] = index
         return Placement(part, position, True, index=index, error_m=0.0)

@@ -22,11 +22,13 @@ Action (thesis 3.3 and 4.3), one control step at ``control_freq`` Hz:
 Collisions are scanned at every physics substep (all contacts looked up at once in a table of forbidden geom pairs,
 filled in from the rule as pairs first touch): any arm link touching anything but its mount, the cup touching an
 object while another object is held, the held object touching anything but its allowed supports, or a resting
-object touching another object. A collision fails the trial (Eq. 4.7) and, with ``disable_effector_on_collision``
-(the DRL setting of 3.3), switches the suction off for the rest of the episode.
+object touching another object (:meth:`HRCCell.forbidden_contact`, the rule that RRT-Connect's collision
+checker also applies to its scratch states, :meth:`HRCCell.scratch_state`). A collision fails the trial (Eq. 4.7)
+and, with ``disable_effector_on_collision`` (the DRL setting of 3.3), switches the suction off for the rest of the
+episode.
 
 Reward (Eq. 3.6): 0 when every task object is within ``success_threshold`` (delta_r) of its goal, else -1.
-Success (Eq. 3.7 / 4.7): that, with no collision during the episode.
+Success (Eq. 3.7 / 4.7, :meth:`HRCCell.success`): that, with no collision during the episode.
 """
 
 from __future__ import annotations
@@ -156,7 +158,8 @@ class HRCCell(ManipulationEnv):
         """Add static bodies (a packaging box) to the arena."""
 
     def _sample_scene(self) -> None:
-        """Choose object poses and goals for a new episode (``self.goals``; place objects with ``_set_object``)."""
+        """Choose object poses and goals for a new episode (``self.goals``; place objects with
+        :meth:`set_object_pose`)."""
         raise NotImplementedError
 
     def task_objects(self) -> list[int]:
@@ -279,7 +282,10 @@ class HRCCell(ManipulationEnv):
         self._sample_scene()
         self.sim.forward()
 
-    def _set_object(self, index: int, position: np.ndarray, yaw: float = 0.0) -> None:
+    def set_object_pose(self, index: int, position: np.ndarray, yaw: float = 0.0) -> None:
+        """Put object ``index`` at rest with its centre at ``position`` (m), turned ``yaw`` (rad) about z. Sets the
+        joint state only: positions derived from it (``object_positions``, contacts) follow at ``sim.forward()`` or
+        the next step."""
         quat = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])  # MuJoCo wxyz
         self.sim.data.set_joint_qpos(self._object_joints[index], np.concatenate([position, quat]))
         self.sim.data.set_joint_qvel(self._object_joints[index], np.zeros(6))
@@ -415,22 +421,72 @@ class HRCCell(ManipulationEnv):
             held=self.suction.held,
             goal_distances=distances,
             at_goal=distances <= self.success_threshold,
-            success=self._check_success(),
+            success=self.success(),
         )
         return reward, done, info
 
     # --- contacts ---------------------------------------------------------------------------------------------
 
+    @property
+    def arm_geoms(self) -> frozenset[int]:
+        """Geom ids of the arm's links."""
+        return frozenset(self._arm_geoms)
+
+    @property
+    def cup_geoms(self) -> frozenset[int]:
+        """Geom ids of the suction cup."""
+        return frozenset(self._cup_geoms)
+
+    @property
+    def mount_geoms(self) -> frozenset[int]:
+        """Geom ids of the arm's mount (the only thing besides the arm and the cup that the arm may touch)."""
+        return frozenset(self._mount_geoms)
+
+    def object_geoms(self, index: int | None = None) -> frozenset[int]:
+        """Geom ids of object ``index``, or of every object (None)."""
+        return frozenset(self._geom_owner if index is None else self._object_geoms[index])
+
+    def forbidden_contact(self, a: int, b: int, held: int, pick_target: int | None = None) -> str | None:
+        """The collision (Eq. 4.7's rule, module docstring) that a contact of geoms ``a`` and ``b`` is while object
+        ``held`` is in the cup (-1: none), named ``"<kind>: <geom> / <geom>"`` with the geoms in the order that
+        matched the rule (e.g. ``"arm: robot0_wrist1_col / table_collision"``), or None when the rule allows it.
+
+        ``pick_target`` None is the cell's own rule, which the contact scan applies. An object index (-1: none)
+        adds a planner's stricter one for a cup that holds nothing: it may touch no object but ``pick_target``
+        (RRT-Connect plans the approach to the product it picks so, :mod:`hrc_lab.motion.rrt_connect`)."""
+        for first, second in ((a, b), (b, a)):
+            kind = self._classify(first, second, held, pick_target)
+            if kind:
+                model = self.sim.model._model
+                return f"{kind}: {model.geom(first).name} / {model.geom(second).name}"
+        return None
+
+    def touching_support(self, index: int) -> bool:
+        """Whether a geom of object ``index`` is in contact with one of its ``allowed_supports`` (MuJoCo's contact
+        list as the last physics substep left it)."""
+        data = self.sim.data._data
+        if not data.ncon:
+            return False
+        first, second = np.asarray(data.contact.geom1[: data.ncon]), np.asarray(data.contact.geom2[: data.ncon])
+        part, supports = self._object_geoms[index], self.allowed_supports(index)
+        return any((a in part and b in supports) or (b in part and a in supports) for a, b in zip(first, second))
+
+    def scratch_state(self, model: mujoco.MjModel | None = None, held: int = -1) -> ScratchState:
+        """A scratch state for collision checks of arm configurations (:class:`ScratchState`): the joint positions
+        now in a new ``MjData`` of ``model`` (a copy of the cell's model, e.g. with other contact margins; default
+        the cell's own), object ``held`` (-1: none) carried rigidly by the cup. The live simulation is untouched."""
+        return ScratchState(self, self.sim.model._model if model is None else model, held)
+
     def _scan_contacts(self) -> None:
         """Add this substep's collisions to ``_step_collisions`` (each event once, in contact order). All contacts
         are looked up at once in the held object's :meth:`_contact_table`; only those marked forbidden or UNSEEN are
-        classified (:meth:`_collision_event`), which fills in the UNSEEN entries."""
+        classified (:meth:`forbidden_contact`), which fills in the UNSEEN entries."""
         held = self.suction.held
         pairs = self.sim.data._data.contact.geom
         table = self._contact_table(held)
         for k in table[pairs[:, 0], pairs[:, 1]].nonzero()[0]:
             a, b = int(pairs[k, 0]), int(pairs[k, 1])
-            event = self._collision_event(a, b, held)
+            event = self.forbidden_contact(a, b, held)
             table[a, b] = table[b, a] = event is not None
             if event is not None and event not in self._step_collisions:
                 self._step_collisions.append(event)
@@ -445,24 +501,18 @@ class HRCCell(ManipulationEnv):
             table = self._contact_tables[held] = np.full((ngeom, ngeom), UNSEEN, dtype=np.int8)
         return table
 
-    def _collision_event(self, a: int, b: int, held: int) -> str | None:
-        """The collision a contact of geoms ``a`` and ``b`` is (:meth:`_classify` both ways), named with the geoms
-        in the order that classified it, or None when it is allowed."""
-        for first, second in ((a, b), (b, a)):
-            kind = self._classify(first, second, held)
-            if kind:
-                model = self.sim.model._model
-                return f"{kind}: {model.geom(first).name} / {model.geom(second).name}"
-        return None
-
-    def _classify(self, a: int, b: int, held: int) -> str | None:
-        """A collision name when geom ``a`` touching geom ``b`` is forbidden, else None (checked both ways)."""
+    def _classify(self, a: int, b: int, held: int, pick_target: int | None = None) -> str | None:
+        """A collision name when geom ``a`` touching geom ``b`` is forbidden, else None (one way round; the rule
+        checks both, :meth:`forbidden_contact`, which says what ``pick_target`` adds)."""
         if a in self._arm_geoms and b not in self._arm_geoms | self._mount_geoms | self._cup_geoms:
             return "arm"
         obj_a, obj_b = self._geom_owner.get(a), self._geom_owner.get(b)
         if a in self._cup_geoms and obj_b is None and b not in self._arm_geoms | self._cup_geoms:
             return "cup"
         if a in self._cup_geoms and obj_b is not None and held >= 0 and obj_b != held:
+            return f"cup-{self.cell_objects[obj_b].name}"
+        if (a in self._cup_geoms and obj_b is not None and held < 0 and pick_target is not None
+                and obj_b != pick_target):
             return f"cup-{self.cell_objects[obj_b].name}"
         if obj_a is not None and obj_a == held and b not in self._cup_geoms | self.allowed_supports(held):
             return f"held-{self.cell_objects[held].name}"
@@ -489,6 +539,10 @@ class HRCCell(ManipulationEnv):
         """Position of the cup's lip (r in the thesis)."""
         return self.sim.data.site_xpos[self._grip_site].copy()
 
+    def eef_quaternion(self) -> np.ndarray:
+        """Orientation (w, x, y, z) of the body that carries the lip (the end-effector pose of 3.3's DRL state)."""
+        return self.sim.data.xquat[self.sim.model._model.site_bodyid[self._grip_site]].copy()
+
     def lip_target_position(self) -> np.ndarray:
         """Where the lip goes once the servo settles on the commanded joints: the servo lags about one control
         step (up to ~4 cm at full speed), so a joint-space controller acts from here, as the expert does."""
@@ -503,12 +557,57 @@ class HRCCell(ManipulationEnv):
         """Sparse reward of Eq. 3.6."""
         return 0.0 if np.all(self.goal_distances() <= self.success_threshold) else -1.0
 
-    def _check_success(self) -> bool:
-        """Eq. 3.7 / 4.7: every task object within delta_r of its goal, released, and no collision."""
+    def success(self) -> bool:
+        """Whether the trial has succeeded (Eq. 3.7 / 4.7): every task object within delta_r of its goal, released,
+        and no collision during the episode."""
         return bool(self.reward() == 0.0 and self.suction.held < 0 and not self.collisions)
+
+    def _check_success(self) -> bool:
+        """robosuite's success hook (its wrappers call it): :meth:`success`."""
+        return self.success()
 
     def raw_observation(self) -> np.ndarray:
         """The flat DRL state of 3.3: joint angles, end-effector pose, object poses (x, y, z, yaw), goals."""
-        eef_quat = self.sim.data.xquat[self.sim.model._model.site_bodyid[self._grip_site]]
         poses = np.column_stack([self.object_positions(), self.object_yaws()])
-        return np.concatenate([self.arm_qpos(), self.eef_position(), eef_quat, poses.ravel(), self.goals.ravel()])
+        return np.concatenate([self.arm_qpos(), self.eef_position(), self.eef_quaternion(), poses.ravel(),
+                               self.goals.ravel()])
+
+
+class ScratchState:
+    """A scratch ``MjData`` for collision checks of arm configurations, apart from the live simulation
+    (:meth:`HRCCell.scratch_state`): ``data`` starts with the cell's joint positions at creation; ``model`` is the
+    cell's model or a copy of it (same bodies, joints and geoms; e.g. other contact margins or filters).
+    :meth:`set_arm_qpos` poses the arm there, object ``held`` (-1: none) moving rigidly with the cup at its pose
+    relative to the cup at creation, and runs forward kinematics; the caller then runs e.g. ``mj_collision`` and
+    judges the contacts with :meth:`HRCCell.forbidden_contact`."""
+
+    def __init__(self, cell: HRCCell, model: mujoco.MjModel, held: int = -1) -> None:
+        live = cell.sim.data._data
+        self.model, self.held = model, held
+        self.data = mujoco.MjData(model)
+        self.data.qpos[:] = live.qpos
+        self._arm_qpos = cell._arm_qpos
+        self._cup = cell.suction.cup
+        if held >= 0:
+            cup, body = self._cup, cell._object_bodies[held]
+            self._rel_pos = live.xmat[cup].reshape(3, 3).T @ (live.xpos[body] - live.xpos[cup])
+            self._rel_quat = np.empty(4)
+            cup_inv = np.empty(4)
+            mujoco.mju_negQuat(cup_inv, live.xquat[cup])
+            mujoco.mju_mulQuat(self._rel_quat, cup_inv, live.xquat[body])
+            self._held_adr = model.jnt_qposadr[model.joint(cell._object_joints[held]).id]
+
+    def set_arm_qpos(self, arm: np.ndarray) -> mujoco.MjData:
+        """Set the six arm joints to ``arm`` (the held object follows the cup) and run ``mj_kinematics``; returns
+        ``data``."""
+        model, data = self.model, self.data
+        data.qpos[self._arm_qpos] = arm
+        mujoco.mj_kinematics(model, data)
+        if self.held >= 0:
+            cup, adr = self._cup, self._held_adr
+            quat = np.empty(4)
+            mujoco.mju_mulQuat(quat, data.xquat[cup], self._rel_quat)
+            data.qpos[adr:adr + 3] = data.xpos[cup] + data.xmat[cup].reshape(3, 3) @ self._rel_pos
+            data.qpos[adr + 3:adr + 7] = quat
+            mujoco.mj_kinematics(model, data)
+        return data

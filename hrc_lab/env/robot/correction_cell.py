@@ -91,7 +91,7 @@ class ErrorCorrection(HRCCell):
             self.goals[RED] = start[RED]
             self.plan = [BLUE]
         for i, position in enumerate(start):
-            self._set_object(i, position)
+            self.set_object_pose(i, position)
 
     def task_objects(self) -> list[int]:
         return [GREEN, BLUE, RED]

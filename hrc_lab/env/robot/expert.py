@@ -110,7 +110,8 @@ class ScriptedExpert:
             dq *= self.env.max_joint_step / largest
         return dq
 
-    def _reached(self, subgoal: np.ndarray) -> bool:
+    def reached(self, subgoal: np.ndarray) -> bool:
+        """Whether the lip is at ``subgoal``: within ``tolerance`` at the commanded joints and twice that measured."""
         lip_cmd, _ = self.env.lip_kinematics(self.env.commanded_qpos())
         lip = self.env.eef_position()
         return np.linalg.norm(subgoal - lip_cmd) < self.tolerance and np.linalg.norm(subgoal - lip) < 2 * self.tolerance
@@ -140,7 +141,7 @@ class ScriptedExpert:
         if self.subgoals is None:
             self.subgoals = self.designed_subgoals(obj, self.stage)
         subgoal = self.subgoals[self.index]
-        if self.steps >= self.max_steps or self._reached(subgoal):
+        if self.steps >= self.max_steps or self.reached(subgoal):
             releasing = self.stage == PLACE and self.index == 2
             label = self.env.stage_label(obj, self.stage)
             if not self._advance() or releasing:

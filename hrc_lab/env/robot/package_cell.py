@@ -65,12 +65,13 @@ class PackageToOrder(HRCCell):
 
     # --- model -------------------------------------------------------------------------------------------------
 
-    def _box_half_extent(self) -> np.ndarray:
+    def box_half_extent(self) -> np.ndarray:
+        """Half extent (x, y) of the box's free floor inside its walls, m."""
         offsets = self.spec.slot_offsets()
         return np.abs(offsets).max(axis=0) + self.spec.product_size / 2 + BOX_MARGIN
 
     def _add_fixtures(self, arena) -> None:
-        half = self._box_half_extent()
+        half = self.box_half_extent()
         t, h, floor = WALL_THICKNESS / 2, WALL_HEIGHT / 2, self.spec.box_floor / 2
         x, y = self.spec.box_center
         box = ET.Element("body", name="box", pos=f"{x} {y} {self.spec.table_z}")
@@ -124,11 +125,11 @@ class PackageToOrder(HRCCell):
         self.restocked = not episode.missing
         for i in range(spec.n_objects):
             if i in episode.missing:
-                self._set_object(i, self.PARK + np.array([0.0, 0.1 * i, 0.0]))
+                self.set_object_pose(i, self.PARK + np.array([0.0, 0.1 * i, 0.0]))
             else:
-                self._set_object(i, episode.positions[i])
+                self.set_object_pose(i, episode.positions[i])
         for product in episode.human_order:  # the simulated human packs these, one by one, before the robot
-            self._set_object(product, episode.packed_positions[product])
+            self.set_object_pose(product, episode.packed_positions[product])
         self.goals = np.where(episode.goal_slot[:, None] >= 0, episode.packed_positions, episode.positions)
 
     def task_objects(self) -> list[int]:
@@ -146,7 +147,7 @@ class PackageToOrder(HRCCell):
         distances = np.linalg.norm(self.object_positions()[present] - self.goals[present], axis=1)
         if np.all(distances <= self.success_threshold):
             for product in self.episode.missing:
-                self._set_object(product, self.episode.positions[product])
+                self.set_object_pose(product, self.episode.positions[product])
             self.restocked = True
             self.sim.forward()
 
