@@ -54,6 +54,7 @@ def test_the_wrapper_gives_the_loop_what_it_reads_from_a_goal_env():
 REACH = RLConfig(net_arch=[128, 128, 128], cycles_per_epoch=10, learning_starts=0, buffer_size=20_000)
 
 
+@pytest.mark.slow
 def test_ddpg_her_learns_fetch_reach_within_three_epochs_of_ten_cycles():
     logged = []
     curve = train_fetch("FetchReach-v4", REACH, epochs=3, seed=0, eval_episodes=20,

@@ -3,6 +3,7 @@ hydra/launcher=joblib into a temporary MLflow store, the summary callback's tabl
 The one subprocess run of the default suite besides the config-error exit code check in test_config.py."""
 
 import os
+import shutil
 import subprocess
 import time
 
@@ -13,8 +14,10 @@ TINY = ["trainer.max_epochs=1", "reasoning.steps=5", "protocol.min_demos=10"]
 
 
 @pytest.fixture(scope="module")
-def joblib_sweep(tmp_path_factory, console_script):
+def joblib_sweep(tmp_path_factory, console_script, migrated_sqlite_template):
     runs = tmp_path_factory.mktemp("sweep") / "runs"
+    runs.mkdir()
+    shutil.copyfile(migrated_sqlite_template, runs / "mlflow.db")  # the jobs' processes skip MLflow's migrations
     env = dict(os.environ, HRC_LAB_RUNS=str(runs), PYTHONWARNINGS="ignore")
     command = [
         console_script("hrc-lab"),
