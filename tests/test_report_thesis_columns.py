@@ -25,7 +25,7 @@ def build(name: str, runs: pd.DataFrame) -> Section:
 
 
 def rows(markdown: str) -> list[str]:
-    """The markdown's table rows with their padding removed: "| 7 | 0.50 ± 0.00 (–) |"."""
+    """The markdown's table rows with their padding removed: "| 7 | 0.50 ± 0.10 (–) |"."""
     return [re.sub(r" +", " ", line) for line in markdown.splitlines() if line.startswith("|")]
 
 
@@ -83,7 +83,7 @@ def test_table_4_1_renders_a_cell_the_thesis_has_no_column_for():
     section = build("table_4_1", runs)
     assert rows(section.markdown)[0] == "| method | 3of5 | 5of6 |"
     assert row_of(section.markdown, "| Ours |") == (
-        "| Ours | 1.00 ± 0.00 (thesis 1.00 ± 0.00) | 0.80 ± 0.00 (thesis –) |")
+        "| Ours | 1.00 (thesis 1.00 ± 0.00) | 0.80 (thesis –) |")  # one seed: no spread; the thesis' own
     thesis = section.table.set_index("cell").thesis_mean
     assert thesis["3of5"] == 1.0 and is_missing(thesis["5of6"])
 
@@ -94,8 +94,7 @@ def test_table_4_2_renders_a_cell_the_thesis_has_no_column_for():
                          "steps_per_object": [40.0, 40.0]})
     section = build("table_4_2", runs)
     assert row_of(section.markdown, "| Ours (task-conditioned VI) | 0.99") == (
-        "| Ours (task-conditioned VI) | 0.99 ± 0.00 (0.97) | 0.90 ± 0.00 (0.92 ± 0.01) | 0.95 ± 0.00 (–) "
-        "| 0.70 ± 0.00 (–) |")
+        "| Ours (task-conditioned VI) | 0.99 (0.97) | 0.90 (0.92 ± 0.01) | 0.95 (–) | 0.70 (–) |")
     table = section.table.set_index("cell")
     assert table.thesis_sr["3of5"] == 0.92 and table.thesis_r2["3of5"] == 0.97
     assert is_missing(table.thesis_sr["5of6"]) and is_missing(table.thesis_r2["5of6"])
@@ -110,7 +109,7 @@ def test_table_4_3_renders_a_cell_the_thesis_has_no_column_for():
     header = rows(section.markdown)[0]
     assert "3of5 SR" in header and "5of6 SR" in header
     assert row_of(section.markdown, "| Ours (Algorithm 2) | 0.90") == (
-        "| Ours (Algorithm 2) | 0.90 ± 0.00 (0.92 ± 0.01) | 1.00 / 0.80 | 0.60 ± 0.00 (–) | 0.70 / 0.50 |")
+        "| Ours (Algorithm 2) | 0.90 (0.92 ± 0.01) | 1.00 / 0.80 | 0.60 (–) | 0.70 / 0.50 |")
     thesis = section.table.set_index("cell").thesis_sr
     assert thesis["3of5"] == 0.92 and is_missing(thesis["5of6"])
 
@@ -131,22 +130,22 @@ def ch5_runs(cells: list[str]) -> pd.DataFrame:
 
 def test_table_5_2_renders_a_goal_count_the_thesis_has_no_column_for():
     section = build("table_5_2", ch5_runs(["1goal", "4goals", "10goals"]))
-    assert row_of(section.markdown, "| 1 |").startswith("| 1 | 1 | 5 | 90.0 ± 0.0 (98.3 ± 1.2) |")
-    assert row_of(section.markdown, "| 4 |").startswith("| 4 | 1 | 5 | 90.0 ± 0.0 (–) | 80.0 ± 0.0 (–) |")
-    assert row_of(section.markdown, "| 10 |").startswith("| 10 | 1 | 5 | 90.0 ± 0.0 (–) |")
+    assert row_of(section.markdown, "| 1 |").startswith("| 1 | 1 | 5 | 90.0 (98.3 ± 1.2) |")
+    assert row_of(section.markdown, "| 4 |").startswith("| 4 | 1 | 5 | 90.0 (–) | 80.0 (–) |")
+    assert row_of(section.markdown, "| 10 |").startswith("| 10 | 1 | 5 | 90.0 (–) |")
     assert sorted(set(section.table.goals)) == [1, 4, 10]
 
 
 def test_table_5_2_planner_renders_a_goal_count_the_thesis_has_no_column_for():
     section = build("table_5_2_planner", ch5_runs(["3goals", "4goals"]))
-    assert row_of(section.markdown, "| 3 |").startswith("| 3 | 80.0 ± 0.0 (thesis 93.8 ± 1.6) |")
-    assert row_of(section.markdown, "| 4 |").startswith("| 4 | 80.0 ± 0.0 (thesis –) | 70.0 ± 0.0 (thesis –) |")
+    assert row_of(section.markdown, "| 3 |").startswith("| 3 | 80.0 (thesis 93.8 ± 1.6) |")
+    assert row_of(section.markdown, "| 4 |").startswith("| 4 | 80.0 (thesis –) | 70.0 (thesis –) |")
 
 
 def test_fig_5_7_renders_a_goal_count_the_thesis_has_no_column_for():
     section = build("fig_5_7", ch5_runs(["4goals", "3goals"]))
-    assert row_of(section.markdown, "| 3goals |") == "| 3goals | 0.95 | 0.60 ± 0.00 | 0.90 ± 0.00 |"
-    assert row_of(section.markdown, "| 4goals |") == "| 4goals | 0.95 | 0.60 ± 0.00 | 0.90 ± 0.00 |"
+    assert row_of(section.markdown, "| 3goals |") == "| 3goals | 0.95 | 0.60 | 0.90 |"
+    assert row_of(section.markdown, "| 4goals |") == "| 4goals | 0.95 | 0.60 | 0.90 |"
     assert set(section.table.cell) == {"3goals", "4goals"}
 
 
@@ -156,6 +155,6 @@ def test_hrc_session_renders_a_goal_count_the_thesis_has_no_column_for(monkeypat
               "robot_help": pd.DataFrame(columns=["run_id", "session", "reason"])}
     monkeypatch.setattr(hrc_lab.report.ch5_hrc, "run_tables", lambda runs, name: tables[name])
     section = build("hrc_session", ch5_runs(["2goals", "4goals"]))
-    assert row_of(section.markdown, "| 2 |").startswith("| 2 | 1 | 5 | 90.0 ± 0.0 (97.7 ± 2.1) |")
-    assert row_of(section.markdown, "| 4 |").startswith("| 4 | 1 | 5 | 90.0 ± 0.0 (–) | 80.0 ± 0.0 (–) |")
+    assert row_of(section.markdown, "| 2 |").startswith("| 2 | 1 | 5 | 90.0 (97.7 ± 2.1) |")
+    assert row_of(section.markdown, "| 4 |").startswith("| 4 | 1 | 5 | 90.0 (–) | 80.0 (–) |")
     assert "the first session of `2goals`" in section.markdown

@@ -35,17 +35,17 @@ ABLATION = "protocol.min_demos=60"
 
 
 def log_run(logger: LoggerConfig, *, cell: str, sweep: str, sr: float, variant: str | None = "default",
-            extra: str = "", min_demos: int = 200, status: str = "FINISHED") -> str:
+            extra: str = "", min_demos: int = 200, status: str = "FINISHED", seed: int = 0) -> str:
     """One run as ``hrc-lab experiment=ch4/table_4_1`` logs it: tags, resolved config as params, final metrics.
     ``variant=None`` leaves out the variant tags (runs logged before they existed)."""
-    base = f"env=package_to_order_{cell} reasoning=ours seed=0"
+    base = f"env=package_to_order_{cell} reasoning=ours seed={seed}"
     tags = {"chapter": "ch4", "table": "table_4_1", "experiment": EXPERIMENT, "method": "ours", "cell": cell,
-            "scenario": cell, "seed": "0", "sweep": sweep}
+            "scenario": cell, "seed": str(seed), "sweep": sweep}
     if variant is not None:
         tags |= {"variant": variant, "overrides": f"{base} {extra}".strip(), "variant_overrides": extra}
-    tracker = RunTracker(logger, EXPERIMENT, f"{EXPERIMENT}-ours-{cell}-seed0", tags)
+    tracker = RunTracker(logger, EXPERIMENT, f"{EXPERIMENT}-ours-{cell}-seed{seed}", tags)
     tracker.__enter__()
-    cfg = OmegaConf.create({"name": EXPERIMENT, "seed": 0,
+    cfg = OmegaConf.create({"name": EXPERIMENT, "seed": seed,
                             "protocol": {"name": "ch4_table_4_1", "min_demos": min_demos, "n_folds": 5}})
     tracker.log_config(cfg)
     tracker.log_metrics({"sr": sr, "latency_ms_batch1": 1.25, "latency_ms_batched": 0.05})
@@ -113,13 +113,13 @@ def test_report_keeps_default_rows_and_gives_each_ablation_its_own_section(store
 
     default = section_text(markdown, TITLE)
     assert f"Runs: sweeps {LEGACY_SWEEP} (1 run), {DEFAULT_SWEEP} (1 run)" in default
-    assert "0.90 ± 0.00" in row_of(default) and "0.70 ± 0.00" in row_of(default)
+    assert "0.90 (thesis" in row_of(default) and "0.70 (thesis" in row_of(default)  # one seed: no spread
     assert "0.10" not in default and "0.55" not in default and "0.35" not in default
     assert "n = 5 (`protocol.n_folds`)" in default  # read from the runs' params, not typed
 
     ablation = section_text(markdown, f"{TITLE} — ablation: {ABLATION}")
     assert f"Runs: sweep {ABLATION_SWEEP} (1 run); variant vdeadbeef" in ablation
-    assert "0.10 ± 0.00" in row_of(ablation) and "0.90" not in ablation and "3of5" not in ablation
+    assert "0.10 (thesis" in row_of(ablation) and "0.90" not in ablation and "3of5" not in ablation
     # the exact ablation: the sweep keys' values its jobs used, then its own overrides
     rerun = f"env=package_to_order_4of5 reasoning=ours seed=0 {ABLATION}"
     # each section's Reproduce line is inside it, under its heading (issue 44: it stood above the next heading)
@@ -134,18 +134,38 @@ def test_report_keeps_default_rows_and_gives_each_ablation_its_own_section(store
     assert all((tmp_path / "reports" / "ch4_reasoning" / name).is_file() for name in images)
 
 
+def test_a_section_of_one_seed_prints_no_spread_and_says_so(store, tmp_path):
+    """Issue 44 item 5: a section whose runs have one seed prints its cells without a "± 0.00" that would read as a
+    measured spread, and says in words that it is one seed; the thesis' values keep their own spread and the CSV its
+    numbers. With a second seed the cells are mean ± std again, a real zero spread included."""
+    out = tmp_path / "reports"
+    one = section_text(build_topic("ch4_reasoning", store.tracking_uri, out).read_text(), TITLE)
+    cells = re.sub(r" +", " ", row_of(one))
+    assert cells == "| Ours | 0.70 (thesis 1.00 ± 0.00) | 0.90 (thesis 1.00 ± 0.00) |"
+    assert "one seed (0): no spread" in one and "mean ± std over seeds" not in one
+    table = pd.read_csv(out / "ch4_reasoning" / "table_4_1.csv")
+    assert table.sr_std.tolist() == [0.0, 0.0] and table.seeds.tolist() == [1, 1]
+
+    log_run(store, cell="3of5", sweep=DEFAULT_SWEEP, sr=0.7, seed=1)
+    log_run(store, cell="4of5", sweep=DEFAULT_SWEEP, sr=0.8, seed=1)
+    two = section_text(build_topic("ch4_reasoning", store.tracking_uri, out).read_text(), TITLE)
+    cells = re.sub(r" +", " ", row_of(two))
+    assert cells == "| Ours | 0.70 ± 0.00 (thesis 1.00 ± 0.00) | 0.85 ± 0.05 (thesis 1.00 ± 0.00) |"
+    assert "mean ± std over seeds [0, 1]" in two and "one seed" not in two
+
+
 def test_sweep_option_restricts_every_section_to_one_sweep(store, tmp_path, capsys):
     out = tmp_path / "reports"
     report_main(["ch4_reasoning", "--tracking-uri", store.tracking_uri, "--out", str(out), "--sweep", DEFAULT_SWEEP])
     markdown = (out / "ch4_reasoning.md").read_text()
     default = section_text(markdown, TITLE)
     assert f"Runs: sweep {DEFAULT_SWEEP} (1 run)" in default and LEGACY_SWEEP not in default
-    assert "0.90 ± 0.00" in row_of(default) and "3of5" not in default
+    assert "0.90 (thesis" in row_of(default) and "3of5" not in default
     assert "— ablation:" not in markdown and f"--sweep {DEFAULT_SWEEP}" in markdown
 
     markdown = build_topic("ch4_reasoning", store.tracking_uri, out, sweep=ABLATION_SWEEP).read_text()
     assert f"## table_4_1\n\nNo finished default runs in sweep {ABLATION_SWEEP}." in markdown
-    assert "0.10 ± 0.00" in row_of(section_text(markdown, f"{TITLE} — ablation: {ABLATION}"))
+    assert "0.10 (thesis" in row_of(section_text(markdown, f"{TITLE} — ablation: {ABLATION}"))
 
 
 def test_update_rebuilds_what_the_store_holds_and_keeps_the_other_sections(store, tmp_path):
@@ -162,7 +182,7 @@ def test_update_rebuilds_what_the_store_holds_and_keeps_the_other_sections(store
     build_topic("ch4_reasoning", store.tracking_uri, out)
     updated = build_topic("ch4_reasoning", other.tracking_uri, out, update=True).read_text()
     default = section_text(updated, TITLE)
-    assert "Runs: sweep 2026-12-02_07-00-00 (1 run)" in default and "0.80 ± 0.00" in row_of(default)
+    assert "Runs: sweep 2026-12-02_07-00-00 (1 run)" in default and "0.80 (thesis" in row_of(default)
     assert "0.70" not in default  # rebuilt from this store only: its legacy 3of5 run is not there
     assert section_text(updated, f"{TITLE} — ablation: {ABLATION}") == ablation  # kept as it was, with its sweep
     assert (out / "ch4_reasoning" / "table_4_1_vdeadbeef.png").is_file()
@@ -188,7 +208,7 @@ def test_sweep_summary_reads_its_own_sweep_and_variant(store, tmp_path):
     summary = (sweep_dir / "summary.md").read_text()
     assert summary.startswith(f"{TITLE} — ablation: {ABLATION}\n")
     assert f"Runs: sweep {ABLATION_SWEEP} (1 run); variant vdeadbeef" in summary
-    assert "0.10 ± 0.00" in row_of(summary) and "0.90" not in summary
+    assert "0.10 (thesis" in row_of(summary) and "0.90" not in summary
     client = MlflowClient(store.tracking_uri)
     experiment = client.get_experiment_by_name(EXPERIMENT).experiment_id
     (summary_run,) = client.search_runs([experiment], "tags.kind = 'summary'")
@@ -260,7 +280,7 @@ def test_hrc_session_section_reads_the_runs_tables(tmp_path):
             video.write_bytes(b"not a real video")
             tracker.log_artifact(video, "videos")
     text = build_topic("ch5_hrc", logger.tracking_uri, tmp_path / "report").read_text()
-    assert "90.0 ± 0.0 (98.3 ± 1.2)" in text and "| 3 |" in text.replace("|       3 |", "| 3 |")
+    assert "90.0 (98.3 ± 1.2)" in text and "| 3 |" in text.replace("|       3 |", "| 3 |")  # one seed: no spread
     # session 0 of each run was right at every step, session 1 had a wrong guidance (and no screw: SC NaN)
     assert "Of the 2 sessions whose Semantic Guidance and Semantic Control were right at every step, 2 ended" in text
     assert "of the 2 with a planner or detection error, 1 did" in text

@@ -12,9 +12,18 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting, setting_values, spread  # noqa: E402
+from hrc_lab.report.runs import (  # noqa: E402
+    NOT_LOGGED,
+    amount,
+    keyed,
+    mean_std,
+    over_seeds,
+    setting,
+    setting_values,
+    spread,
+)
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
-from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
+from hrc_lab.report.thesis import fmt, markdown_table, thesis_fmt, thesis_results  # noqa: E402
 
 # (scenario, object) rows of Table 3.1 and their keys in thesis_results.yaml
 ROWS = [
@@ -50,7 +59,7 @@ def table_3_1(runs: pd.DataFrame) -> Section:
             entry = {"method": method, "scenario": scenario, "object": colour, "seeds": len(part)}
             for threshold in THRESHOLDS:
                 mean, std = spread(part, f"sr_{colour}_{threshold}")
-                row[f"SR δr={threshold}"] = f"{fmt(mean, std)} ({fmt(*ref[f'sr_at_{threshold}'])})"
+                row[f"SR δr={threshold}"] = f"{fmt(mean, std)} ({thesis_fmt(*ref[f'sr_at_{threshold}'])})"
                 entry |= {f"sr_{threshold}_mean": mean, f"sr_{threshold}_std": std,
                           f"thesis_sr_{threshold}": ref[f"sr_at_{threshold}"][0]}
             steps_mean, steps_std = spread(part, f"steps_{colour}")
@@ -70,7 +79,7 @@ def table_3_1(runs: pd.DataFrame) -> Section:
         f"correcting the human's misplacements in {amount(runs, 'protocol.trials', 'trials')} per case and seed in "
         "the robosuite cell: an object succeeds when it ends within δr of its goal and no "
         "forbidden contact happened. Steps: control steps the robot spent on the object (thesis: at δr 0.08 / 0.06). "
-        f"Mean ± std over seeds {sorted(runs.seed.unique())}; thesis values in brackets. Planners: "
+        f"{over_seeds(runs, start=True)}; thesis values in brackets. Planners: "
         + "; ".join(f"`{m}` {METHODS.get(m, m)}" for m in methods)
         + " (not in the thesis: the thesis' planner infers its progress through a stage from r).",
         "",
@@ -168,15 +177,21 @@ def fig_3_10(runs: pd.DataFrame) -> Section:
         f"{amount(runs, 'protocol.steps', 'control steps')} from the initial pose "
         f"({amount(runs, 'protocol.trials', 'trials')} per seed), for controllers trained on the same error-correction "
         f"demonstrations ({amount(runs, 'protocol.demos_per_case', 'per case')}); 'reached' counts trials that got "
-        f"below {keyed(runs, 'protocol.converged_m', 'm')}; curves: mean over trials, band: "
-        f"spread over seeds {sorted(runs.seed.unique())}. Thesis (Fig. 3.10): the NDP gets below "
+        f"below {keyed(runs, 'protocol.converged_m', 'm')}; curves: mean over trials, {_band(runs)}. Thesis "
+        f"(Fig. 3.10): the NDP gets below "
         f"{ref['ndp_converges_below_m']} m in about {ref['ndp_steps_to_converge']} steps; the full-observation actor "
         "does not converge.",
         "",
-        pd.DataFrame(rows).to_markdown(index=False) if rows else "(no curves)",
+        markdown_table(pd.DataFrame(rows)) if rows else "(no curves)",
     ]
     return Section("Fig. 3.10: neural dynamic planner vs. full-observation actor", "\n".join(text),
                    pd.DataFrame(csv), {"fig_3_10.png": fig})
+
+
+def _band(runs: pd.DataFrame) -> str:
+    """What the band around Fig. 3.10's curves shows: the spread over seeds, none for one seed."""
+    seeds = sorted(runs.seed.unique())
+    return f"one seed ({seeds[0]}): no band" if len(seeds) == 1 else f"band: spread over seeds {seeds}"
 
 
 def _oracle_reading(runs: pd.DataFrame) -> str:

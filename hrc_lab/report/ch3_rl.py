@@ -13,9 +13,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
-from hrc_lab.report.runs import PARAM_PREFIX, amount, histories, spread  # noqa: E402
+from hrc_lab.report.runs import PARAM_PREFIX, amount, histories, over_seeds, spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
-from hrc_lab.report.thesis import fmt, thesis_results  # noqa: E402
+from hrc_lab.report.thesis import fmt, markdown_table, thesis_results  # noqa: E402
 
 ARMS = {"0": "pure exploration (λ = 0)", "0.7": "hybrid (λ = 0.7)", "1": "full guidance (λ = 1)"}
 
@@ -63,7 +63,7 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
         ax.set_ylim(-0.02, 1.02)
         ax.legend(fontsize=7)
     fig.tight_layout()
-    text = [intro, "", thesis_line, "", pd.DataFrame(rows).to_markdown(index=False) if rows else "(no runs)"]
+    text = [intro, "", thesis_line, "", markdown_table(pd.DataFrame(rows)) if rows else "(no runs)"]
     if any("–" in row.values() for row in rows):
         text += ["", "–: a metric these runs did not log (they ran before it was added)."]
     return Section(title, "\n".join(text), pd.DataFrame(csv), {png: fig})
@@ -114,7 +114,7 @@ def epoch_text(runs: pd.DataFrame) -> str:
             "550 epochs, read as the reference implementation's). Agent: DDPG + HER, hidden layers "
             f"{net_arch(runs)}, {inputs_text(runs)}, {ddpg_text(runs)}; planner trained on "
             f"{amount(runs, 'protocol.demos', 'expert demonstrations')}. Final SR: the last epoch's evaluation, "
-            f"mean over the plan's subtasks; mean ± std over seeds {sorted(runs.seed.unique())}.")
+            f"mean over the plan's subtasks; {over_seeds(runs)}.")
 
 
 @register_section("fig_3_13")
@@ -179,7 +179,7 @@ def fig_3_9(runs: pd.DataFrame) -> Section:
         "",
         f"Thesis (Fig. 3.9): the guided exploration keeps the goal-state positional difference within {within} m.",
         "",
-        pd.DataFrame(rows).to_markdown(index=False) if rows else "(no runs)",
+        markdown_table(pd.DataFrame(rows)) if rows else "(no runs)",
     ]
     return Section("Fig. 3.9: the goal-state positional difference in guided vs unguided exploration", "\n".join(text),
                    pd.DataFrame(csv), {"fig_3_9.png": fig})
@@ -239,7 +239,7 @@ def fetch(runs: pd.DataFrame) -> Section:
         "goals (success: within 5 cm at the last step). The published runs used 19 workers and 1,900 episodes per "
         "epoch; a CPU core here reaches the first few hundred.",
         "",
-        pd.DataFrame(rows).to_markdown(index=False),
+        markdown_table(pd.DataFrame(rows)),
     ]
     return Section("A public anchor: the same agent and loop on gymnasium-robotics' Fetch tasks", "\n".join(text),
                    pd.DataFrame(csv), {"fetch.png": fig})

@@ -7,9 +7,9 @@ import pandas as pd
 
 from hrc_lab.report.ch4_conditions import conditions_paragraph
 from hrc_lab.report.plots import success_bars
-from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting
+from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, over_seeds, setting
 from hrc_lab.report.sections import Section, register_section
-from hrc_lab.report.thesis import fmt, thesis_cells, thesis_results, thesis_value
+from hrc_lab.report.thesis import fmt, thesis_cells, thesis_fmt, thesis_results, thesis_value
 
 CELLS = ["2of3", "3of3", "3of5", "4of5"]
 METHODS = ["tc_vi", "vi", "gpr", "mlp"]
@@ -74,8 +74,8 @@ def table_4_2(runs: pd.DataFrame) -> Section:
             ref_sr = thesis_value(ref["sr"], thesis["columns"], cell) or (None, None)
             r2_mean, r2_std = _stat(r2, method, cell)
             sr_mean, sr_std = _stat(sr, method, cell)
-            row[f"{cell} R²"] = f"{fmt(r2_mean, r2_std)} ({fmt(ref_r2)})"
-            row[f"{cell} SR"] = f"{fmt(sr_mean, sr_std)} ({fmt(*ref_sr)})"
+            row[f"{cell} R²"] = f"{fmt(r2_mean, r2_std)} ({thesis_fmt(ref_r2)})"
+            row[f"{cell} SR"] = f"{fmt(sr_mean, sr_std)} ({thesis_fmt(*ref_sr)})"
             csv.append({"method": method, "cell": cell, "r2_mean": r2_mean, "r2_std": r2_std, "sr_mean": sr_mean,
                         "sr_std": sr_std, "thesis_r2": ref_r2, "thesis_sr": ref_sr[0]})
         rows.append(row)
@@ -95,7 +95,7 @@ def table_4_2(runs: pd.DataFrame) -> Section:
         f"{amount(runs, 'protocol.demos', 'scripted-expert demonstrations')} per cell and seed) of the two-level "
         "motion module with ground-truth reasoning outputs, δr = "
         f"{keyed(runs, 'env.sim.success_threshold', 'm')}; "
-        f"mean ± std over seeds {sorted(runs.seed.unique())}. Thesis values in brackets.",
+        f"{over_seeds(runs)}. Thesis values in brackets.",
         "",
         pd.DataFrame(rows).to_markdown(index=False),
         "",

@@ -12,9 +12,17 @@ import pandas as pd  # noqa: E402
 from hrc_lab.reasoning.configs import DEFAULT_POSITION_FRAME, POSITION_FRAMES  # noqa: E402
 from hrc_lab.report.ch4_conditions import conditions_paragraph  # noqa: E402
 from hrc_lab.report.plots import success_bars  # noqa: E402
-from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, setting  # noqa: E402
+from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, over_seeds, setting  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
-from hrc_lab.report.thesis import fmt, thesis_cells, thesis_results, thesis_value  # noqa: E402
+from hrc_lab.report.thesis import (  # noqa: E402
+    fmt,
+    markdown_table,
+    one_seed,
+    thesis_cells,
+    thesis_fmt,
+    thesis_results,
+    thesis_value,
+)
 
 CELLS = ["2of3", "3of3", "3of5", "4of5"]
 METHODS = ["ours", "ours_all_earlier", "ours_node_scores", "gnn", "gnn_task", "mlp", "rf"]
@@ -37,7 +45,7 @@ def table_4_1(runs: pd.DataFrame) -> Section:
             ours = stats[(stats.method == method) & (stats.cell == cell)]
             mean, std, n = ours.iloc[0][["mean", "std", "n"]] if len(ours) else (np.nan, np.nan, 0)
             ref = thesis_value(thesis.get(method), thesis["columns"], cell)  # None: a method or cell not run
-            row[cell] = f"{fmt(mean, std)} (thesis {fmt(*ref) if ref else '–'})"
+            row[cell] = f"{fmt(mean, std)} (thesis {thesis_fmt(*ref) if ref else '–'})"
             csv.append(
                 {
                     "method": method,
@@ -51,10 +59,9 @@ def table_4_1(runs: pd.DataFrame) -> Section:
             )
         rows.append(row)
     latency = runs[runs.method == "ours"].groupby("cell")[["latency_ms_batch1", "latency_ms_batched"]].mean()
-    seeds = sorted(runs.seed.unique())
     text = [
         "Success rate (all 2n predictions of a trial right), CASE 1, full demo set, random positions; "
-        f"mean ± std over seeds {seeds} (seed k tests on fold k mod n of an n-fold split, n = "
+        f"{over_seeds(runs)} (seed k tests on fold k mod n of an n-fold split, n = "
         f"{keyed(runs, 'protocol.n_folds')}). Thesis values in brackets.",
         "",
         pd.DataFrame(rows).to_markdown(index=False),
@@ -152,7 +159,7 @@ def fig_4_7(runs: pd.DataFrame) -> Section:
         "Success rate over the training ratio λ. CASE 1: unseen goal configurations (selections never trained on; "
         "at λ = 1 every configuration is seen, with new positions). CASE 2: "
         f"{amount(runs, 'protocol.case2_tests', 'human-intervention scenarios')} of random configurations. "
-        f"Mean ± std over seeds {sorted(runs.seed.unique())}."
+        f"{over_seeds(runs, start=True)}."
         + (" The rows of ours' variants come from `hrc-lab experiment=ch4/fig_4_7_variants hydra/launcher=joblib`."
            if any(m.startswith("ours_") for m in methods) else ""),
         "",
@@ -172,7 +179,7 @@ def fig_4_7(runs: pd.DataFrame) -> Section:
             table = table.pivot(index="method", columns="ratio", values="value").reindex(methods)
             table.index = [LABELS.get(m, m) for m in table.index]
             table.columns = [f"λ={c:g}" for c in table.columns]
-            text += ["", f"**{case.upper()}, {cell}**", "", table.to_markdown()]
+            text += ["", f"**{case.upper()}, {cell}**", "", markdown_table(table, index=True)]
     text += _where_ours_fails(runs, cells)
     return Section(
         "Fig. 4.7: generalisation over the training ratio",
@@ -187,11 +194,11 @@ def _thesis_claims(frame: pd.DataFrame, thesis: dict) -> list[str]:
     case2 = thesis["case2_ours_sr_at_lambda_1"]
     claims = [
         ("CASE 1, 3of5, unseen configurations at λ = 0.6", "case1", "3of5", 0.6,
-         fmt(thesis["case1_ours_unseen_sr_at_lambda_0.6_3of5"])),
+         thesis_fmt(thesis["case1_ours_unseen_sr_at_lambda_0.6_3of5"])),
         (f"CASE 1, 4of5, {thesis['case1_4of5_unseen_configs_handled']} unseen configurations at λ = 0.8", "case1",
          "4of5", 0.8, f"handled ({thesis['case1_4of5_trained_demos']} demos)"),
-        ("CASE 2, 3of5, λ = 1", "case2", "3of5", 1.0, fmt(case2["3of5"], digits=3)),
-        ("CASE 2, 4of5, λ = 1", "case2", "4of5", 1.0, fmt(case2["4of5"], digits=3)),
+        ("CASE 2, 3of5, λ = 1", "case2", "3of5", 1.0, thesis_fmt(case2["3of5"], digits=3)),
+        ("CASE 2, 4of5, λ = 1", "case2", "4of5", 1.0, thesis_fmt(case2["4of5"], digits=3)),
     ]
     methods = [m for m in OURS_FAMILY if m in set(frame.method)]
     rows = []
@@ -202,7 +209,7 @@ def _thesis_claims(frame: pd.DataFrame, thesis: dict) -> list[str]:
                         & np.isclose(frame.ratio, ratio)]
             row[LABELS[method]] = fmt(hit.sr_mean.iloc[0], hit.sr_std.iloc[0]) if len(hit) else "–"
         rows.append(row)
-    return ["", pd.DataFrame(rows).to_markdown(index=False)] if methods else []
+    return ["", markdown_table(pd.DataFrame(rows))] if methods else []
 
 
 HEADS = {"acc_o_pick": "P_o pick", "acc_o_place": "P_o place", "acc_g_pick": "P_g pick", "acc_g_place": "P_g place"}
@@ -331,7 +338,7 @@ def practical(runs: pd.DataFrame) -> Section:
     methods = thesis_cells(runs["method"].unique(), METHODS)
     rows, records = [], []
     for metric, (label, ref) in scenarios.items():
-        row = {"scenario": label, "thesis (ours)": fmt(ref)}
+        row = {"scenario": label, "thesis (ours)": thesis_fmt(ref)}
         for method in methods:
             stats = mean_std(runs[runs.method == method], ["method"], metric)
             mean, std = (stats.iloc[0]["mean"], stats.iloc[0]["std"]) if len(stats) else (np.nan, np.nan)
@@ -343,9 +350,9 @@ def practical(runs: pd.DataFrame) -> Section:
         f"with {missing} products absent at the start and restocked once the rest is packed; MLP and RF need a fixed "
         f"input size (n/a). Varying order size: one model trained on {trained} (box of "
         f"{amount(runs, 'protocol.slots', 'slots')}), {amount(runs, 'protocol.test_tests', 'tests')} per size and "
-        f"case. Mean ± std over seeds {sorted(runs.seed.unique())}.",
+        f"case. {over_seeds(runs, start=True)}.",
         "",
-        pd.DataFrame(rows).to_markdown(index=False),
+        markdown_table(pd.DataFrame(rows)),
     ]
     everywhere = pd.Series(True, index=runs.index)
     text += _diagnostics(runs, [({"scenario": label}, everywhere, metric.removesuffix("sr") + "{}")
@@ -355,7 +362,9 @@ def practical(runs: pd.DataFrame) -> Section:
 
 def _separable(frame: pd.DataFrame) -> str:
     """Which (case, stage) have a largest share that leads the runner-up by more than the larger of their seed
-    spreads, and which do not (then the ranking cannot be told from these seeds)."""
+    spreads, and which do not (then the ranking cannot be told from these seeds); nothing for one seed."""
+    if one_seed():
+        return ""
     clear, unclear = [], []
     for (case, stage), part in frame.groupby(["case", "stage"]):
         first, second = part.sort_values("mean", ascending=False).iloc[:2].itertuples()
@@ -382,11 +391,11 @@ def fig_4_9(runs: pd.DataFrame) -> Section:
     text = [
         "GNNExplainer feature masks summed over nodes and normalised (share of importance per node feature) for the "
         "P_o output of `ours`; the thesis finds I decisive at picking and z important at placing, with the same "
-        f"masks in both cases. Mean ± std over seeds {sorted(runs.seed.unique())}.",
+        f"masks in both cases. {over_seeds(runs, start=True)}.",
         "",
-        table.reset_index().to_markdown(index=False),
+        markdown_table(table.reset_index()),
         "",
-        f"Largest mean share: {ranked}. {_separable(frame)}",
+        f"Largest mean share: {ranked}. {_separable(frame)}".rstrip(),
     ]
     shown = runs.sort_values("seed").iloc[0]
     text += ["", f"Masks below: seed {shown.seed}."]

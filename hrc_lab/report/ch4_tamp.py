@@ -6,9 +6,9 @@ import numpy as np
 import pandas as pd
 
 from hrc_lab.report.plots import success_bars
-from hrc_lab.report.runs import amount, keyed, mean_std
+from hrc_lab.report.runs import amount, keyed, mean_std, over_seeds
 from hrc_lab.report.sections import Section, register_section
-from hrc_lab.report.thesis import fmt, thesis_cells, thesis_results, thesis_value
+from hrc_lab.report.thesis import fmt, thesis_cells, thesis_fmt, thesis_results, thesis_value
 
 CELLS = ["2of3", "3of3", "3of5", "4of5"]
 SYSTEMS = ["ours", "drl", "rm_rrt_connect"]
@@ -61,7 +61,7 @@ def table_4_3(runs: pd.DataFrame) -> Section:
         for cell in cells:
             ref = thesis_value(thesis[system]["sr"], thesis["columns"], cell) or (None, None)  # None: not run
             mean, std = _stat(stats["sr"], system, cell)
-            row[f"{cell} SR"] = f"{fmt(mean, std)} ({fmt(*ref)})"
+            row[f"{cell} SR"] = f"{fmt(mean, std)} ({thesis_fmt(*ref)})"
             c1, c2 = _stat(stats["sr_case1"], system, cell)[0], _stat(stats["sr_case2"], system, cell)[0]
             row[f"{cell} CASE 1 / 2"] = f"{fmt(c1)} / {fmt(c2)}"
             csv.append({"system": system, "cell": cell, "sr_mean": mean, "sr_std": std, "sr_case1": c1,
@@ -102,8 +102,8 @@ def table_4_3(runs: pd.DataFrame) -> Section:
     by_case = runs.groupby(["method", "cell"])[[k for k in by_case if k in runs]].mean().round(2)
     text = [
         f"Success rate (SR) of {amount(runs, 'protocol.trials', 'trials')} per cell (CASE 1 and CASE 2 alternating, "
-        f"the same scenes for every system), δr = {keyed(runs, 'env.sim.success_threshold', 'm')}; mean ± std over "
-        f"seeds {sorted(runs.seed.unique())}, thesis values in brackets. Ours and RM+RRT-Connect learn from CASE 1 "
+        f"the same scenes for every system), δr = {keyed(runs, 'env.sim.success_threshold', 'm')}; "
+        f"{over_seeds(runs)}, thesis values in brackets. Ours and RM+RRT-Connect learn from CASE 1 "
         f"only (reasoning module: {amount(runs, 'protocol.min_demos', 'task episodes')} as Table 4.1; motion module: "
         f"{amount(runs, 'protocol.demos', 'robot demonstrations')} as Table 4.2); DRL trains "
         f"{amount(runs, 'protocol.drl_iterations', 'cycles')} of the HER reference implementation (thesis: 5000 "

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import pandas as pd
 
-from hrc_lab.report.runs import amount, run_tables, spread
+from hrc_lab.report.runs import amount, over_seeds, run_tables, spread
 from hrc_lab.report.sections import Section, register_section
-from hrc_lab.report.thesis import fmt, thesis_cells, thesis_results
+from hrc_lab.report.thesis import fmt, markdown_table, thesis_cells, thesis_fmt, thesis_results
 
 CELLS = ["1goal", "2goals", "3goals"]
 
@@ -25,8 +25,7 @@ def per_cell(runs: pd.DataFrame, suffix: str, with_thesis: bool) -> tuple[list[d
         row = {"goals": goals, "seeds": len(part), "sessions": sessions}
         for k, (metric, title) in enumerate((("ad_acc", "AD %"), ("sg_acc", "SG %"), ("sc_acc", "SC %"))):
             mean, std = (100 * v for v in spread(part, metric + suffix))
-            thesis_text = "–" if ref[k][0] is None else f"{ref[k][0]} ± {ref[k][1]}"
-            row[title] = fmt(mean, std, 1) + (f" ({thesis_text})" if with_thesis else "")
+            row[title] = fmt(mean, std, 1) + (f" ({thesis_fmt(*ref[k], 1)})" if with_thesis else "")
             records.append({"goals": goals, "sessions": suffix or "normal", "metric": metric, "mean": mean,
                             "std": std})
         row["robot commands"] = int(part.get(f"robot_commands{suffix}", pd.Series(dtype=float)).sum())
@@ -69,16 +68,16 @@ def hrc_session(runs: pd.DataFrame) -> Section:
         "sessions whose bracket holds exactly the goal at the end. AD / SG / SC as in Table 5.2, on the same "
         "sessions as `ch5/table_5_2` of the same seed (AD depends on the detector only; SG and SC can differ where "
         "the cell refused a step, which the planner then never sees); thesis (20 real experiments x 5) in brackets; "
-        f"mean ± std over seeds {sorted(runs.seed.unique())}. The video is generated in advance, so it shows the "
+        f"{over_seeds(runs)}. The video is generated in advance, so it shows the "
         "expert's part appearing after each screw whatever the robot did; the cell is what the robot really did.",
         "",
         "Normal sessions:",
         "",
-        pd.DataFrame(normal).to_markdown(index=False),
+        markdown_table(pd.DataFrame(normal)),
         "",
         "Fast sessions (every action about twice as fast, motion-blurred; the thesis' stated failure case):",
         "",
-        pd.DataFrame(fast).to_markdown(index=False) if fast else "(none in these runs)",
+        markdown_table(pd.DataFrame(fast)) if fast else "(none in these runs)",
         "",
         cause,
         "",

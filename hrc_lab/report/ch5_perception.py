@@ -6,9 +6,9 @@ from __future__ import annotations
 import pandas as pd
 from matplotlib.figure import Figure
 
-from hrc_lab.report.runs import amount, setting, setting_number, spread
+from hrc_lab.report.runs import amount, over_seeds, setting, setting_number, spread
 from hrc_lab.report.sections import Section, register_section
-from hrc_lab.report.thesis import fmt, thesis_cells, thesis_results
+from hrc_lab.report.thesis import fmt, markdown_table, thesis_cells, thesis_fmt, thesis_results
 
 METHODS = {
     "hand_lstm_fcn": "Ours: MediaPipe + LSTM-FCN + VGG-style CNN",
@@ -53,11 +53,11 @@ def fig_5_6(runs: pd.DataFrame) -> Section:
     text = [
         f"Action accuracy on generated clips of the 18 actions of Table 5.1 ({int(n_clips)} clips of {window}, "
         f"MediaPipe found the hand in {runs.tracked_fraction.mean():.1%} of their frames), {split} per "
-        f"action; mean ± std over seeds {sorted(runs.seed.unique())} (each seed: a new split and initialisation). "
+        f"action; {over_seeds(runs)} (each seed: a new split and initialisation). "
         "The thesis gives Fig. 5.6 only as bars (ours best, hand-centric CNN and CNN-LSTM clearly lower) and "
         f"{text_ref['detector_accuracy_whole_video']:.1%} for its detector over the whole video set (Fig. 5.5).",
         "",
-        pd.DataFrame(rows).to_markdown(index=False),
+        markdown_table(pd.DataFrame(rows)),
         "",
         latency,
     ]
@@ -98,7 +98,7 @@ def table_5_2(runs: pd.DataFrame) -> Section:
         for (metric, title), (ref_mean, ref_std) in zip((("ad_acc", "AD %"), ("sg_acc", "SG %"), ("sc_acc", "SC %")),
                                                         ref):
             mean, std = (100 * v for v in spread(part, metric))
-            row[title] = f"{fmt(mean, std, 1)} ({'–' if ref_mean is None else f'{ref_mean} ± {ref_std}'})"
+            row[title] = f"{fmt(mean, std, 1)} ({thesis_fmt(ref_mean, ref_std, 1)})"
             records.append({"goals": goals, "metric": metric, "mean": mean, "std": std})
         row["fast sessions"] = int(part.n_fast_sessions.sum())
         for metric, title in (("ad_acc_fast", "AD % fast"), ("sg_acc_fast", "SG % fast"), ("sc_acc_fast", "SC % fast")):
@@ -112,12 +112,12 @@ def table_5_2(runs: pd.DataFrame) -> Section:
         f"share of windows ({amount(runs, 'env.video.window', 'frames')}) whose action is the majority true label "
         "of their frames; SG: the Semantic Guidance "
         "on screen after each human placement (hand out of view) is right for every part type; SC: the first robot "
-        "command during each screw is the expert's next part and positions. Mean ± std over seeds "
-        f"{sorted(runs.seed.unique())} (per seed the sessions are new); thesis (20 real experiments x 5) in "
+        "command during each screw is the expert's next part and positions. "
+        f"{over_seeds(runs, start=True)} (per seed the sessions are new); thesis (20 real experiments x 5) in "
         "brackets. Fast sessions play every action about twice as fast with motion blur, the thesis' stated "
         "failure case.",
         "",
-        pd.DataFrame(rows).to_markdown(index=False),
+        markdown_table(pd.DataFrame(rows)),
         "",
         f"Latency on this CPU: MediaPipe {fmt(*spread(runs, 'tracking_ms_per_frame'), 1)} ms per frame, detector "
         f"{fmt(*spread(runs, 'classify_ms'), 1)} ms per window.",

@@ -8,9 +8,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.report.runs import amount, mean_std  # noqa: E402
+from hrc_lab.report.runs import amount, mean_std, over_seeds  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
-from hrc_lab.report.thesis import fmt, thesis_cells, thesis_results  # noqa: E402
+from hrc_lab.report.thesis import fmt, markdown_table, thesis_cells, thesis_fmt, thesis_results  # noqa: E402
 
 CELLS = ["1goal", "2goals", "3goals"]
 
@@ -37,10 +37,10 @@ def fig_5_7(runs: pd.DataFrame) -> Section:
     text = [
         "Success rate (goal, next object and every part type's plan right) of the semantic planner trained on a "
         "fraction λ of the scenarios (every partially assembled state of every goal: 62 per goal) and scored on "
-        f"all of them; mean ± std over seeds {sorted(runs.seed.unique())}. 'best possible' is the ceiling set by "
+        f"all of them; {over_seeds(runs)}. 'best possible' is the ceiling set by "
         "the ambiguous scenarios (identical graphs under two goals, listed in `ambiguous_scenarios.md`).",
         "",
-        table.reset_index().to_markdown(index=False),
+        markdown_table(table.reset_index()),
     ]
     if "sr_n143" in runs:
         ours = mean_std(runs[runs.cell == "3goals"], ["cell"], "sr_n143")
@@ -89,8 +89,8 @@ def table_5_2_planner(runs: pd.DataFrame) -> Section:
         rows.append(
             {
                 "goals": goals,
-                "SG (%)": fmt(sg.mean(), sg.std(ddof=0), 1) + f" (thesis {fmt(*ref[1], 1)})",
-                "SC (%)": fmt(sc.mean(), sc.std(ddof=0), 1) + f" (thesis {fmt(*ref[2], 1)})",
+                "SG (%)": fmt(sg.mean(), sg.std(ddof=0), 1) + f" (thesis {thesis_fmt(*ref[1], 1)})",
+                "SC (%)": fmt(sc.mean(), sc.std(ddof=0), 1) + f" (thesis {thesis_fmt(*ref[2], 1)})",
                 "assembly / screw events per seed": f"{part.n_assembly_events.mean():.0f} / "
                 f"{part.n_screw_events.mean():.0f}",
                 "latency ms (CPU)": f"{part.latency_ms.median():.2f}",
@@ -103,11 +103,11 @@ def table_5_2_planner(runs: pd.DataFrame) -> Section:
         "Planner columns of Table 5.2 with perfect action labels: "
         f"{amount(runs, 'protocol.sessions', 'generated sessions')} per goal count and seed (random goal, "
         "random human order, screw events that hand the next part to the robot) streamed through the Algorithm 3 "
-        f"loop; mean ± std over seeds {sorted(runs.seed.unique())}. Latency: median per decision on this CPU, graph "
-        f"construction and decoding included (thesis: {ref_ms} ms on a GPU). The thesis' numbers also include its "
-        "action detector's errors; ours isolate the planner. The action detector and the end-to-end pipeline "
-        "(video -> actions -> plans, the full Table 5.2) are in the ch5_perception report "
-        "([ch5_perception.md](ch5_perception.md)).",
+        f"loop; {over_seeds(runs)}. Latency: median per decision on this CPU, graph construction and decoding "
+        f"included (thesis: {ref_ms} ms on a GPU). The thesis' numbers also include its action detector's errors; "
+        "ours isolate the planner. The end-to-end numbers, with our action detector's errors, are in "
+        "[ch5_perception.md](ch5_perception.md) (video -> actions -> plans, the full Table 5.2) and, with the robot "
+        "in the loop, [ch5_hrc.md](ch5_hrc.md).",
         "",
         pd.DataFrame(rows).to_markdown(index=False),
     ]

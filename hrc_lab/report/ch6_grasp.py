@@ -12,9 +12,18 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from hrc_lab.grasp.diagnostics import FAILURE_CAUSES  # noqa: E402
-from hrc_lab.report.runs import amount, histories, keyed, run_tables, setting, setting_number, spread  # noqa: E402
+from hrc_lab.report.runs import (  # noqa: E402
+    amount,
+    histories,
+    keyed,
+    over_seeds,
+    run_tables,
+    setting,
+    setting_number,
+    spread,
+)
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
-from hrc_lab.report.thesis import fmt, thesis_results, thesis_value  # noqa: E402
+from hrc_lab.report.thesis import fmt, markdown_table, thesis_fmt, thesis_results, thesis_value  # noqa: E402
 
 METHODS = {
     "gnn_att": "GNN_Att (ours)",
@@ -40,20 +49,20 @@ def table_6_1(runs: pd.DataFrame) -> Section:
         row = {"method": METHODS[method]}
         for (metric, title), ref in zip(COLUMNS, thesis.get(method, [[None, None]] * len(COLUMNS))):  # ablations
             mean, std = spread(runs[runs.method == method], metric)
-            row[title] = f"{fmt(mean, std, 3)} ({fmt(*ref, 3)})"
+            row[title] = f"{fmt(mean, std, 3)} ({thesis_fmt(*ref, 3)})"
             records.append({"method": method, "metric": metric, "mean": mean, "std": std})
         rows.append(row)
     text = [
         "Object accuracy (OA): a requested part counts when it is detected, its graspability is right and, when it "
         "is not graspable, the decoded solution is right; on the unseen test scenes with new random requests of "
         "one, two or three part types. Train_Acc: the solver's graspability accuracy on the requested parts of its "
-        "training scenes that the detector found (the nodes it is trained on). Mean ± std over "
-        f"seeds {sorted(runs.seed.unique())}; thesis values in brackets. Node features: the detector's box-head "
+        "training scenes that the detector found (the nodes it is trained on). "
+        f"{over_seeds(runs, start=True)}; thesis values in brackets. Node features: the detector's box-head "
         f"feature of each box{_context(runs)}, the label and the request flag (GVMRN_RF classifies pairs from "
         "union-box features). The ground-truth-box row "
         "reads the same network's features from the true boxes: its gap to ours is what detection errors cost.",
         "",
-        pd.DataFrame(rows).to_markdown(index=False),
+        markdown_table(pd.DataFrame(rows)),
         "",
         *_decomposition(runs, methods, thesis_results()["ch6"]["text"]["part_a_object_accuracy"]),
         *_geometry(runs, thesis_results()["ch6"]["text"]),
@@ -97,12 +106,12 @@ def _decomposition(runs: pd.DataFrame, methods: list[str], part_a_thesis: float)
         part = runs[runs.method == method]
         rows.append({"method": METHODS[method]} | {title: fmt(*spread(part, metric), 3) for metric, title in columns})
     return [
-        "Where the object accuracy is lost (mean ± std over seeds; test columns pooled over the three request "
-        "sizes). An undetected requested part counts as wrong, so the detected share bounds the OA; the "
+        f"Where the object accuracy is lost ({over_seeds(runs, listed=False)}; test columns pooled over the three "
+        "request sizes). An undetected requested part counts as wrong, so the detected share bounds the OA; the "
         "graspability on detected parts is the solver's own accuracy. Per part type: the thesis finds part a the "
         f"hardest request, OA about {part_a_thesis} (Sec. 6.4.1).",
         "",
-        pd.DataFrame(rows).to_markdown(index=False),
+        markdown_table(pd.DataFrame(rows)),
         "",
     ]
 
@@ -194,14 +203,14 @@ def table_6_2_single(runs: pd.DataFrame) -> Section:
         "none is graspable, the decoded solution's part types (nearest detected part of each) become the new "
         "request, until a graspable part or help. Right when the final grasp is a part the labelling rule finds "
         "graspable among the requested parts (or, if none is, among those the rule's own iteration reaches), or "
-        f"when both end in help. Mean ± std over seeds {sorted(runs.seed.unique())}; thesis (single image, 10 "
+        f"when both end in help. {over_seeds(runs, start=True)}; thesis (single image, 10 "
         "cases per count, checked by hand) in brackets. The robot row (the same scenes and requests, acted on "
         "in the robosuite cell) is in [ch6_robot.md](ch6_robot.md) (`hrc-lab-report ch6_robot`).",
         "",
-        pd.DataFrame(rows).to_markdown(index=False),
+        markdown_table(pd.DataFrame(rows)),
     ]
-    text += _failures(runs[runs.method == "gnn_att"], counts) + _answer_lengths(runs[runs.method == "gnn_att"])
     ours = runs[runs.method == "gnn_att"]
+    text += _failures(ours, counts, over_seeds(runs, listed=False)) + _answer_lengths(ours)
     artifacts = {}
     if len(ours) and "examples_logged" in ours:
         artifacts["examples.png"] = (ours.iloc[0].run_id, "figures/examples.png")
@@ -235,7 +244,7 @@ def table_6_3(runs: pd.DataFrame) -> Section:
     text = [
         "Image-based accuracy (IA, 6.4.2): a test image counts when every object in it is right: detected, its "
         "graspability right and, when it cannot be grasped, its decoded solution right (every object of the image "
-        f"is requested). Data: {source}. Mean ± std over seeds {sorted(runs.seed.unique())}. The thesis ran VMRD v2 "
+        f"is requested). Data: {source}. {over_seeds(runs, start=True)}. The thesis ran VMRD v2 "
         f"(31 daily-life classes, up to 5 objects per image, VMRN {thesis['vmrn']}); "
         + ("these machines cannot download it, so the numbers are not comparable with the thesis' column beside "
            "them: the protocol is the thesis', the data are ours." if written else
@@ -243,7 +252,7 @@ def table_6_3(runs: pd.DataFrame) -> Section:
            f"label one-hots and the solution words), its images letterboxed to {keyed(runs, 'env.image_size', 'px')} "
            "square."),
         "",
-        pd.DataFrame(rows).to_markdown(index=False),
+        markdown_table(pd.DataFrame(rows)),
     ]
     if counts:
         most = thesis_results()["ch6"]["text"]["vmrd_max_objects_per_image"]
@@ -260,22 +269,23 @@ def _classes(runs: pd.DataFrame) -> str:
     return " or ".join(map(str, counts)) if counts else "its"
 
 
-def _failures(runs: pd.DataFrame, counts: list[int]) -> list[str]:
-    """The share of cases per failure cause and part count (:func:`hrc_lab.grasp.diagnostics.failure_cause`)."""
+def _failures(runs: pd.DataFrame, counts: list[int], seeds: str) -> list[str]:
+    """The share of cases per failure cause and part count (:func:`hrc_lab.grasp.diagnostics.failure_cause`);
+    ``seeds``: what the spread is over, in words (:func:`hrc_lab.report.runs.over_seeds` of the section's runs)."""
     if not counts or f"fail_{FAILURE_CAUSES[0]}_{counts[0]}" not in runs:
         return []  # runs older than the failure causes
     rows = [{"wrong because": cause} | {f"{count} objects": fmt(*spread(runs, f"fail_{cause}_{count}"), 3)
                                         for count in counts} for cause in FAILURE_CAUSES]
     return [
         "",
-        "Why answers are wrong (GNN_Att; share of all cases per part count, mean ± std over seeds; the first cause "
+        f"Why answers are wrong (GNN_Att; share of all cases per part count, {seeds}; the first cause "
         "that applies): *detection*: a part of the requested type, or one the rule's iteration from it passes "
         "through, is not detected, or a detection of the requested type matches no part; *graspability*: at some "
         "request the solver's graspability of a requested part differs from the rule's; *solution*: a decoded "
         "solution differs from the rule's; *other*: every step agrees with the rule (the nearest part of a named "
         "type is not the rule's choice, or the iteration limit).",
         "",
-        pd.DataFrame(rows).to_markdown(index=False),
+        markdown_table(pd.DataFrame(rows)),
     ]
 
 

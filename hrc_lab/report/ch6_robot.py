@@ -7,9 +7,9 @@ from __future__ import annotations
 import pandas as pd
 
 from hrc_lab.grasp.diagnostics import ROBOT_FAILURES
-from hrc_lab.report.runs import amount, spread
+from hrc_lab.report.runs import amount, over_seeds, spread
 from hrc_lab.report.sections import Section, register_section
-from hrc_lab.report.thesis import fmt, thesis_results, thesis_value
+from hrc_lab.report.thesis import fmt, markdown_table, thesis_results, thesis_value
 
 ROBOT_FAILURES_TEXT = (
     "*detection*, *graspability*, *solution*, *other*: the single-image answer of an iteration was wrong, judged "
@@ -46,21 +46,21 @@ def table_6_2_robot(runs: pd.DataFrame) -> Section:
         "scene, detects, reads the graph until the single-image answer, and grasps the part it names at the 3-D "
         "point of its box (depth image + camera model): a part of the requested type goes to the tray and the "
         "episode succeeds; another part is put aside and the scene imaged again. An episode that ends in help "
-        "succeeds when the rule's own Algorithm 4 also ends in help. Mean ± std over seeds "
-        f"{sorted(runs.seed.unique())}; thesis (real UR10, 10 cases per count) in brackets; the single-image row "
+        "succeeds when the rule's own Algorithm 4 also ends in help. "
+        f"{over_seeds(runs, start=True)}; thesis (real UR10, 10 cases per count) in brackets; the single-image row "
         "is in [ch6_grasp.md](ch6_grasp.md).",
         "",
         pd.DataFrame([row]).to_markdown(index=False),
         "",
-        "Why episodes failed (share of all episodes per part count, mean ± std over seeds; the first cause that "
-        f"applies): {ROBOT_FAILURES_TEXT}",
+        f"Why episodes failed (share of all episodes per part count, {over_seeds(runs, listed=False)}; the first "
+        f"cause that applies): {ROBOT_FAILURES_TEXT}",
         "",
-        pd.DataFrame(failures).to_markdown(index=False),
+        markdown_table(pd.DataFrame(failures)),
         "",
         f"Where the time goes (mean over iterations; perception and reasoning together {fmt(*perception, 1)} ms per "
-        "iteration on this CPU, the issue's budget 200 ms):",
+        "iteration on this CPU; hrc_lab's real-time budget, 200 ms):",
         "",
-        pd.DataFrame(phases).to_markdown(index=False),
+        markdown_table(pd.DataFrame(phases)),
     ]
     artifacts = {}
     filmed = runs[runs.video_scene.notna()].sort_values("seed") if "video_scene" in runs else runs.iloc[:0]

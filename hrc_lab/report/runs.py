@@ -136,6 +136,18 @@ def number_first(value: str):
         return (1, 0.0, value)
 
 
+def over_seeds(runs: pd.DataFrame, listed: bool = True, start: bool = False) -> str:
+    """What a section's "±" means, in words: "mean ± std over seeds [0, 1, 2]" ("mean ± std over seeds" unless
+    ``listed``), or "one seed (0): no spread" for runs of one seed, whose cells print no spread
+    (:func:`hrc_lab.report.thesis.seeds_of`). ``start``: capitalised, to begin a sentence."""
+    seeds = sorted(runs.seed.unique())
+    if len(seeds) == 1:
+        text = f"one seed ({seeds[0]}): no spread"
+    else:
+        text = f"mean ± std over seeds {seeds}" if listed else "mean ± std over seeds"
+    return text[0].upper() + text[1:] if start else text
+
+
 def mean_std(frame: pd.DataFrame, by: list[str], metric: str) -> pd.DataFrame:
     """Mean, standard deviation (ddof=0, as a spread over seeds) and number of seeds of a metric per group."""
     if metric not in frame:

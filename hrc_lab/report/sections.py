@@ -3,10 +3,13 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import pandas as pd
+
+from hrc_lab.report.thesis import seeds_of
 
 
 @dataclass
@@ -23,9 +26,18 @@ SECTIONS: dict[str, Callable[[pd.DataFrame], Section]] = {}
 
 
 def register_section(table: str):
+    """Register ``builder(runs) -> Section`` as the section of the runs tagged ``table``. It renders inside
+    :func:`hrc_lab.report.thesis.seeds_of`, so that a section built from one seed prints its cells without a
+    spread."""
+
     def decorator(builder):
-        SECTIONS[table] = builder
-        return builder
+        @functools.wraps(builder)
+        def build(runs: pd.DataFrame) -> Section:
+            with seeds_of(runs):
+                return builder(runs)
+
+        SECTIONS[table] = build
+        return build
 
     return decorator
 

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from functools import lru_cache
 from pathlib import Path
 
@@ -17,8 +19,50 @@ def thesis_results() -> dict:
     return yaml.safe_load(REFERENCE.read_text())
 
 
+# True while a report section built from the runs of one seed is rendered (set by
+# hrc_lab.report.sections.register_section): its cells have no spread to show.
+_ONE_SEED: ContextVar[bool] = ContextVar("one_seed", default=False)
+
+
+@contextmanager
+def seeds_of(runs) -> Iterator[None]:
+    """Render a section of ``runs`` (a frame with a ``seed`` column): while inside, :func:`fmt` leaves out the spread
+    when the runs have one seed, so that such a section prints "0.96", not "0.96 ± 0.00"."""
+    token = _ONE_SEED.set("seed" in runs and runs["seed"].nunique() == 1)
+    try:
+        yield
+    finally:
+        _ONE_SEED.reset(token)
+
+
+def one_seed() -> bool:
+    """Whether the section being rendered was built from the runs of one seed (see :func:`seeds_of`)."""
+    return _ONE_SEED.get()
+
+
 def fmt(mean: float | None, std: float | None = None, digits: int = 2) -> str:
-    """ "0.96 ± 0.01", "0.96" without a spread, "–" for a missing value."""
+    """One of our cells: "0.96 ± 0.01" (mean ± std over seeds), "0.96" without a spread or in a section built from
+    one seed (:func:`seeds_of`), "–" for a missing value. The thesis' own values: :func:`thesis_fmt`."""
+    return _mean_std_text(mean, None if one_seed() else std, digits)
+
+
+def markdown_table(frame, index: bool = False, **kwargs) -> str:
+    """``frame.to_markdown`` for a table of :func:`fmt` cells. In a section of one seed its text columns are not
+    read as numbers, so that a cell "0.60" stays "0.60" (tabulate would print 0.6; elsewhere the cell's "±" keeps
+    it text); columns of numbers are laid out as ``to_markdown`` does."""
+    if one_seed():
+        text = [i + index for i in range(frame.shape[1]) if frame.iloc[:, i].map(lambda v: isinstance(v, str)).all()]
+        if text:
+            kwargs["disable_numparse"] = text
+    return frame.to_markdown(index=index, **kwargs)
+
+
+def thesis_fmt(mean: float | None, std: float | None = None, digits: int = 2) -> str:
+    """A thesis value with the thesis' own spread: "0.96 ± 0.01", "0.96" without one, "–" for a missing value."""
+    return _mean_std_text(mean, std, digits)
+
+
+def _mean_std_text(mean: float | None, std: float | None, digits: int) -> str:
     if mean is None or mean != mean:  # None or NaN
         return "–"
     if std is None or std != std:
