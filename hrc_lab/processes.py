@@ -1,11 +1,14 @@
 """Which process is which: a live process' identity that outlives PID reuse (used by the runs' ``process_start``
-tag, ``hrc-lab-runs stale`` and ``hrc-lab-server stop``), and which machine it runs on (the runs' ``cpu`` tags,
-``hrc-lab-reproduce``'s summary)."""
+tag, ``hrc-lab-runs stale`` and ``hrc-lab-server stop``), which machine it runs on (the runs' ``cpu`` tags,
+``hrc-lab-reproduce``'s summary), and the one way hrc_lab signals and stops a process group (``hrc-lab-server``'s
+MLflow server, ``hrc-lab-reproduce``'s steps)."""
 
 from __future__ import annotations
 
 import os
 import platform
+import signal
+import time
 from pathlib import Path
 
 
@@ -21,6 +24,48 @@ def process_start(pid: int) -> str | None:
     if fields[0] == "Z":
         return None
     return f"{boot}:{fields[19]}"
+
+
+def alive(pid: int | None, start: str | None) -> bool:
+    """Whether ``pid`` is still the process whose :func:`process_start` was ``start``."""
+    return pid is not None and start is not None and process_start(pid) == start
+
+
+def group_members(pgid: int) -> list[int]:
+    """Live (non-zombie) processes of process group ``pgid``."""
+    members = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[2]) == pgid and fields[0] != "Z":
+                members.append(int(entry.name))
+    return members
+
+
+def signal_group(pgid: int, signum: int) -> bool:
+    """Send ``signum`` to process group ``pgid`` (0: only check it exists); False when no process of it is left."""
+    try:
+        os.killpg(pgid, signum)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def stop_group(pid: int, start: str | None, timeout: float = 20) -> None:
+    """SIGTERM the process group led by ``pid`` (if it is still our process: ``start``), SIGKILL after
+    ``timeout`` s."""
+    if not alive(pid, start):
+        return
+    signal_group(pid, signal.SIGTERM)
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if not signal_group(pid, 0) or (not alive(pid, start) and not group_members(pid)):
+            return
+        time.sleep(0.2)
+    signal_group(pid, signal.SIGKILL)
 
 
 def machine_identity() -> dict[str, str]:

@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import re
 import shlex
 import signal
@@ -34,7 +33,7 @@ from pathlib import Path
 import pandas as pd
 
 from hrc_lab.config import runs_dir
-from hrc_lab.processes import machine_identity
+from hrc_lab.processes import machine_identity, signal_group
 from hrc_lab.report.build import COMMANDS
 from hrc_lab.report.sections import TOPICS
 
@@ -197,15 +196,6 @@ class Stopped(Exception):
         self.signum = signum
 
 
-def _signal_group(pgid: int, signum: int) -> bool:
-    """Send ``signum`` to process group ``pgid``; False when no process of the group is left."""
-    try:
-        os.killpg(pgid, signum)
-    except ProcessLookupError:
-        return False
-    return True
-
-
 def _run(argv: list[str]) -> int:
     """Run one step in its own process group and return its exit code. SIGINT / SIGTERM to this process reach the
     whole group (the sweep and its launcher's workers, which mark their MLflow runs KILLED); once the group has
@@ -216,7 +206,7 @@ def _run(argv: list[str]) -> int:
 
     def forward(signum, frame):
         received.append(signum)
-        _signal_group(child.pid, signum)
+        signal_group(child.pid, signum)
 
     previous = {sig: signal.signal(sig, forward) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -228,10 +218,10 @@ def _run(argv: list[str]) -> int:
                     break
             elif kill_at == math.inf:
                 kill_at = time.monotonic() + STOP_GRACE_S
-            elif returncode is not None and not _signal_group(child.pid, 0):
+            elif returncode is not None and not signal_group(child.pid, 0):
                 break
             elif time.monotonic() > kill_at:
-                _signal_group(child.pid, signal.SIGKILL)
+                signal_group(child.pid, signal.SIGKILL)
                 if returncode is not None:
                     break
             time.sleep(0.2)

@@ -17,7 +17,6 @@ import argparse
 import json
 import os
 import shutil
-import signal
 import socket
 import subprocess
 import sys
@@ -27,7 +26,7 @@ import urllib.request
 from pathlib import Path
 
 from hrc_lab.config import runs_dir
-from hrc_lab.processes import process_start
+from hrc_lab.processes import alive, process_start, stop_group
 
 PG_BIN_DIRS = [Path("/usr/lib/postgresql/15/bin")]
 LOOPBACK = {"127.0.0.1", "localhost", "::1"}
@@ -39,10 +38,6 @@ class ServerError(RuntimeError):
 
 
 # processes ----------------------------------------------------------------------------------------------------------
-def alive(pid: int | None, start: str | None) -> bool:
-    return pid is not None and start is not None and process_start(pid) == start
-
-
 def port_free(port: int, host: str = "127.0.0.1") -> bool:
     with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as sock:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as the servers do: TIME_WAIT is no obstacle
@@ -193,40 +188,6 @@ def stop_postgres(data: Path, timeout: float = 60) -> None:
 
 
 # MLflow -------------------------------------------------------------------------------------------------------------
-def stop_group(pid: int, start: str | None, timeout: float = 20) -> None:
-    """SIGTERM the process group led by ``pid`` (if it is still our process), SIGKILL after ``timeout``."""
-    if not alive(pid, start):
-        return
-    os.killpg(pid, signal.SIGTERM)
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            os.killpg(pid, 0)
-        except ProcessLookupError:
-            return
-        if not alive(pid, start) and not group_members(pid):
-            return
-        time.sleep(0.2)
-    try:
-        os.killpg(pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-
-
-def group_members(pgid: int) -> list[int]:
-    """Live (non-zombie) processes of process group ``pgid``."""
-    members = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            if int(fields[2]) == pgid and fields[0] != "Z":
-                members.append(int(entry.name))
-    return members
-
-
 def start_mlflow(root: Path, db_uri: str, host: str, port: int, timeout: float) -> dict:
     artifacts = root / "artifacts"
     artifacts.mkdir(parents=True, exist_ok=True)
