@@ -92,7 +92,8 @@ HEAVY = ("torch", "lightning", "mlflow", "robosuite", "mujoco", "sklearn", "torc
 VALIDATE_IN_A_FRESH_INTERPRETER = f"""
 import sys
 from hydra import compose, initialize_config_dir
-from hrc_lab.cli import CONF_DIR, run
+from hrc_lab.cli import run
+from hrc_lab.run_naming import CONF_DIR
 from hrc_lab.config import validate_config
 from hrc_lab.registry import ConfigError
 

@@ -10,13 +10,13 @@ import pytest
 import torch
 from omegaconf import OmegaConf
 
-from hrc_lab.cli import method_of
 from hrc_lab.config import validate_config
 from hrc_lab.perception import PERCEPTIONS
 from hrc_lab.perception.action_detector import ActionDetector, ActionWindows
 from hrc_lab.perception.configs import ActionDetectorConfig
 from hrc_lab.perception.networks import LSTMFCN, ActionDetectorNet, FrameSequenceLSTM, PlainLSTM, VGGStyleCNN
 from hrc_lab.registry import ConfigError
+from hrc_lab.run_naming import method_of
 
 EXPERIMENT = "experiment=ch5/table_5_2"
 BRANCHES = {  # name -> (temporal, spatial), thesis 5.4.1

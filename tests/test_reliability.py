@@ -19,10 +19,11 @@ import torch
 from mlflow.tracking import MlflowClient
 from torch.utils.data import TensorDataset
 
-from hrc_lab.cli import check_resumable, run_name, variant_of
+from hrc_lab.cli import check_resumable
 from hrc_lab.config import LoggerConfig, validate_config
 from hrc_lab.interrupts import RunInterrupted, signals_raise
 from hrc_lab.registry import ConfigError
+from hrc_lab.run_naming import run_name, variant_of
 from hrc_lab.runs_cli import stale
 from hrc_lab.tracking import RunTracker, process_identity
 from hrc_lab.training import FixedStepDataModule, RandomState, RunCheckpoint, SupervisedModule, Trainer
@@ -280,7 +281,7 @@ def test_shared_facts_are_interpolations(compose_config):
 def test_a_users_own_config_file_makes_a_variant(compose_config, tmp_path):
     from hydra.core.hydra_config import HydraConfig
 
-    from hrc_lab.cli import job_tags
+    from hrc_lab.run_naming import job_tags
 
     def tags(*overrides: str) -> dict[str, str]:
         cfg = compose_config("experiment=ch4/table_4_1", *overrides, return_hydra_config=True)

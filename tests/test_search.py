@@ -8,9 +8,9 @@ import pytest
 from mlflow.tracking import MlflowClient
 from omegaconf import open_dict, read_write
 
-from hrc_lab.cli import variant_of
 from hrc_lab.config import validate_config
 from hrc_lab.registry import ConfigError
+from hrc_lab.run_naming import variant_of
 from hrc_lab.search import check_search_space, objective_of
 
 TINY = ["protocol.epochs=1", "rl.cycles_per_epoch=1", "rl.gradient_steps=5", "protocol.eval_episodes=2"]

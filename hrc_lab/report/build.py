@@ -9,9 +9,9 @@ import matplotlib.pyplot as plt
 import pandas as pd
 from mlflow.tracking import MlflowClient
 
-from hrc_lab.cli import NEUTRAL_KEYS
 from hrc_lab.report.runs import DEFAULT_VARIANT, fetch_runs, number_first, sweeps_line, variants_of
 from hrc_lab.report.sections import SECTIONS, TOPICS, Section, load_sections
+from hrc_lab.run_naming import NEUTRAL_KEYS
 from hrc_lab.tracking import resolve_tracking_uri
 
 COMMANDS = {
