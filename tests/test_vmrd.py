@@ -8,7 +8,8 @@ import pytest
 
 from hrc_lab.config import validate_config
 from hrc_lab.data.files import DataFileError
-from hrc_lab.data.vmrd import check_layout, letterbox, read_vmrd, write_vmrd
+from hrc_lab.data.vmrd import letterbox, read_vmrd, write_vmrd
+from hrc_lab.data.vmrd_layout import check_layout
 from hrc_lab.env.clutter.rule import blocker_solution, blockers
 from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene, ClutterSpec
 from hrc_lab.experiments.ch6_grasp import dataset_classes, image_accuracy

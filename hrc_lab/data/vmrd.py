@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from hrc_lab.data.files import DataFileError
+from hrc_lab.data.vmrd_layout import SPLITS, check_layout
 from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene
 
-SPLITS = ("trainval", "test")
 IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png")
 
 
@@ -47,22 +47,6 @@ class AnnotatedScene:
     image_id: str
     scene: ClutterScene
     children: list[list[int]]
-
-
-def check_layout(root: str | Path) -> Path:
-    """``root`` as a :class:`Path` once its folders and image sets are there (fast: reads no annotation)."""
-    root = Path(root)
-    if not root.is_dir():
-        raise DataFileError(f"{root}: no such directory (a data set in VMRD's layout: Annotations/, JPEGImages/, "
-                            "ImageSets/Main/trainval.txt and test.txt)")
-    for folder in ("Annotations", "JPEGImages"):
-        if not (root / folder).is_dir():
-            raise DataFileError(f"{root}: has no {folder}/ folder; not a data set in VMRD's layout")
-    for split in SPLITS:
-        existing = root / "ImageSets" / "Main" / f"{split}.txt"
-        if not existing.is_file():
-            raise DataFileError(f"{existing}: missing; a VMRD-layout data set lists its {split} images there")
-    return root
 
 
 def image_ids(root: str | Path, split: str) -> list[str]:

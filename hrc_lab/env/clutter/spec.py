@@ -121,7 +121,7 @@ class VmrdSpec(ClutterSpec):
     def __post_init__(self) -> None:
         super().__post_init__()
         if self.vmrd_root is not None:
-            from hrc_lab.data.vmrd import check_layout
+            from hrc_lab.data.vmrd_layout import check_layout
 
             try:
                 check_layout(self.vmrd_root)
