@@ -27,7 +27,7 @@ from omegaconf import DictConfig
 
 from hrc_lab.config import LOGGERS, ConfigError, ValidatedConfig, validate_config
 from hrc_lab.interrupts import RunInterrupted, signals_raise
-from hrc_lab.run_naming import CONF_DIR, job_tags, method_of, run_name
+from hrc_lab.run_naming import CONF_DIR, is_optuna, job_tags, method_of, run_name
 
 log = logging.getLogger("hrc_lab")
 
@@ -136,7 +136,7 @@ def _hydra_main(cfg: DictConfig) -> float | None:
 def objective_value(cfg: DictConfig, metrics: dict[str, float]) -> float | None:
     """The value an Optuna sweeper optimises: the metric ``search.objective`` names (conf/search; docs/search.md),
     else ``sr``. Under the Optuna sweeper a missing metric is a config error naming the metrics there are."""
-    from hrc_lab.search import is_optuna, objective_of
+    from hrc_lab.search import objective_of
 
     objective = objective_of(cfg)
     if objective not in metrics and is_optuna(HydraConfig.get()):

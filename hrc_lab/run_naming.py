@@ -105,6 +105,21 @@ def run_name(cfg: DictConfig, scenario: str, variant: str = "default") -> str:
     return name if variant == "default" else f"{name}-{variant}"
 
 
+OPTUNA = "optuna"  # hydra/sweeper=optuna (hrc_lab.search)
+
+
+def is_optuna(hydra_cfg: DictConfig) -> bool:
+    """Whether the job or sweep runs under the Optuna sweeper (``hydra/sweeper=optuna``, a multirun)."""
+    multirun = hydra_cfg.get("mode") in (RunMode.MULTIRUN, "MULTIRUN")
+    return multirun and (hydra_cfg.runtime.get("choices") or {}).get("hydra/sweeper") == OPTUNA
+
+
+def study_name(hydra_cfg: DictConfig) -> str:
+    """``hydra.sweeper.study_name``, else the sweep folder's name (what :class:`hrc_lab.search.StudyCallback` gives
+    the sweeper): the ``study`` tag of an Optuna sweep's runs."""
+    return str(hydra_cfg.sweeper.get("study_name") or Path(hydra_cfg.sweep.dir).name)
+
+
 def sweep_id() -> str:
     """The sweep a job belongs to (its sweep folder relative to runs/), or "none" for a single run."""
     hydra_cfg = HydraConfig.get()
@@ -117,8 +132,6 @@ def job_tags() -> dict[str, str]:
     """The sweep, the task overrides and the variant of the running Hydra job (``variant_overrides``: the extra
     overrides, then each user config source with the files taken from it, e.g. ``--config-dir /abs/dir
     (env/my_cell.yaml@1a2b3c4d)``)."""
-    from hrc_lab.search import is_optuna
-
     hydra_cfg = HydraConfig.get()
     overrides = list(hydra_cfg.overrides.task)
     # A grid sweep's keys are the experiment's protocol; an Optuna trial's sampled and fixed values are a variant of

@@ -13,29 +13,15 @@ variant (the sampled values are overrides), so no trial enters a report's defaul
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf, read_write
 
 from hrc_lab.config import ConfigError
+from hrc_lab.run_naming import is_optuna, study_name
 
-OPTUNA = "optuna"
 SEARCH_KEYS = ("name", "objective")  # the keys of the `search` node (conf/search/*.yaml)
 _ABSENT = object()
-
-
-def is_optuna(hydra_cfg: DictConfig) -> bool:
-    """Whether the job or sweep runs under the Optuna sweeper (``hydra/sweeper=optuna``, a multirun)."""
-    from hydra.types import RunMode
-
-    multirun = hydra_cfg.get("mode") in (RunMode.MULTIRUN, "MULTIRUN")
-    return multirun and (hydra_cfg.runtime.get("choices") or {}).get("hydra/sweeper") == OPTUNA
-
-
-def study_name(hydra_cfg: DictConfig) -> str:
-    """``hydra.sweeper.study_name``, else the sweep folder's name (what :class:`StudyCallback` gives the sweeper)."""
-    return str(hydra_cfg.sweeper.get("study_name") or Path(hydra_cfg.sweep.dir).name)
 
 
 DEFAULT_OBJECTIVE = "sr"  # the success rate most protocols return; a search file names another
@@ -130,4 +116,4 @@ class StudyCallback(Callback):
             return
         from hrc_lab.report.search import report_study
 
-        report_study(config)
+        report_study(config, study_name(config.hydra), objective_of(config))

@@ -52,20 +52,18 @@ def best_trial(trials: pd.DataFrame, direction: str) -> pd.Series | None:
     return done.loc[done["value"].idxmax() if direction == "maximize" else done["value"].idxmin()]
 
 
-def report_study(config: DictConfig) -> None:
-    """At the end of an Optuna sweep: print the study's trials and its best trial, and log both (with the sweeper's
+def report_study(config: DictConfig, study: str, objective: str) -> None:
+    """At the end of an Optuna sweep of ``config``: print the trials of ``study`` and its best trial by
+    ``objective`` (the names :mod:`hrc_lab.search` gives them), and log both (with the sweeper's
     ``optimization_results.yaml``) as a summary run tagged ``kind=summary`` and ``study``."""
-    from hrc_lab.search import objective_of, study_name
     from hrc_lab.tracking import LoggerConfig, RunTracker
 
-    study = study_name(config.hydra)
     sweep_dir = Path(config.hydra.sweep.dir)
     uri = config.logger.tracking_uri
     direction = str(OmegaConf.select(config, "hydra.sweeper.direction", default="minimize")).split(".")[-1]
     trials = study_trials(uri, config.name, study)
     best = best_trial(trials, direction)
     shown = trials.drop(columns=["run_id"]).to_markdown(index=False) if not trials.empty else "(no trial runs)"
-    objective = objective_of(config)
     if best is None:
         line = f"hrc-lab: study {study}: no finished trial"
     else:
