@@ -18,8 +18,8 @@ from mlflow.tracking import MlflowClient
 from omegaconf import OmegaConf
 
 from hrc_lab.config import register_schemas, validate_config
-from hrc_lab.experiments.ch3_rl import evaluation_env, evaluation_seed
 from hrc_lab.rl.agent import MOVED_M, HerDDPG, run_episode
+from hrc_lab.rl.evaluation import evaluation_env, evaluation_seed
 
 
 def replay(agent: HerDDPG, env, seed: int) -> dict[str, float]:

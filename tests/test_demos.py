@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from hrc_lab.data.demos import DemoWriter, read_demos
+from hrc_lab.data.recording import record_episode
 from hrc_lab.data.segmentation import PICK, PLACE, agreement, detect_stages, resample, stage_labels, stage_subgoals
 from hrc_lab.env.robot.correction_cell import ErrorCorrection
 from hrc_lab.env.robot.expert import ScriptedExpert
-from hrc_lab.experiments.collect import record_episode
 
 
 def piecewise(points, lengths):

@@ -96,9 +96,9 @@ def tiny_trainer() -> pl.Trainer:
 
 
 def expert_demos(env, n: int, **segmentation):
+    from hrc_lab.data.recording import record_episode
     from hrc_lab.data.segmentation import stage_subgoals
     from hrc_lab.env.robot.expert import ScriptedExpert
-    from hrc_lab.experiments.collect import record_episode
 
     expert, demos = ScriptedExpert(env), []
     for _ in range(n):
@@ -351,20 +351,19 @@ def test_correction_demos_records_until_n_are_kept(monkeypatch):
     at MAX_ATTEMPTS_PER_DEMO * n when too few succeed."""
     from types import SimpleNamespace
 
+    import hrc_lab.data.recording as recording
     import hrc_lab.data.segmentation as segmentation
     import hrc_lab.env.robot.expert as expert
-    import hrc_lab.experiments.collect as collect
-    from hrc_lab.experiments.ch3_motion import MAX_ATTEMPTS_PER_DEMO, correction_demos
+    from hrc_lab.motion.demonstrations import MAX_ATTEMPTS_PER_DEMO, correction_demos
 
     def demos_with(success_every: int) -> tuple[int, int]:
         episodes = iter(range(1000))
-        monkeypatch.setattr(collect, "record_episode", lambda env, *a: SimpleNamespace(
+        monkeypatch.setattr(recording, "record_episode", lambda env, *a: SimpleNamespace(
             success=next(episodes) % success_every == 0))
-        kept = correction_demos(env, 5, protocol, "test")
+        kept = correction_demos(env, 5, subgoals_per_stage=5, segmentation_penalty=0.0, desc="test")
         return len(kept), next(episodes)  # kept, episodes recorded (the next episode's number)
 
     env = SimpleNamespace(stage_label=None, expert_plan=lambda: [1])
-    protocol = SimpleNamespace(subgoals_per_stage=5, segmentation_penalty=0.0)
     monkeypatch.setattr(expert, "ScriptedExpert", lambda *a, **k: None)
     monkeypatch.setattr(segmentation, "stage_subgoals", lambda *a, **k: ([(0, 1), (1, 2)], []))
     assert demos_with(2) == (5, 9)  # episodes 0, 2, 4, 6, 8 kept: 9 recorded

@@ -9,52 +9,10 @@ from tqdm import tqdm
 
 from hrc_lab.env import ENVS
 from hrc_lab.experiments.context import RunContext
-from hrc_lab.motion import MOTIONS
+from hrc_lab.motion.demonstrations import correction_demos
+from hrc_lab.motion.training import train_two_level
 
 COLOURS = {1: "blue", 2: "red"}
-MAX_ATTEMPTS_PER_DEMO = 3
-
-
-def correction_demos(env, n: int, protocol, desc: str, placement_noise: float = 0.0,
-                     rng: np.random.Generator | None = None, action_noise: float = 0.0,
-                     action_rng: np.random.Generator | None = None) -> list:
-    """Expert demonstrations with their change-point stages and ``protocol.subgoals_per_stage`` re-sampled
-    sub-goals per stage (3.3); the expert aims its placements with ``placement_noise`` (m) drawn from ``rng``, and
-    its executed joint deltas carry ``action_noise`` (rad, DART) drawn from ``action_rng``.
-    Kept: the successful demonstrations whose segmentation found a picking and a placing stage per moved object;
-    episodes are recorded until ``n`` are kept or ``MAX_ATTEMPTS_PER_DEMO * n`` were tried (noise can spoil one)."""
-    from hrc_lab.data.segmentation import stage_subgoals
-    from hrc_lab.env.robot.expert import ScriptedExpert
-    from hrc_lab.experiments.collect import record_episode
-
-    expert, demos = ScriptedExpert(env, placement_noise=placement_noise, rng=rng), []
-    with tqdm(total=n, desc=desc, unit="demo") as progress:
-        for _ in range(MAX_ATTEMPTS_PER_DEMO * n):
-            demo = record_episode(env, expert, action_noise, action_rng)
-            demo.stage_bounds, demo.stage_subgoals = stage_subgoals(
-                demo, env.stage_label, protocol.subgoals_per_stage, "resample", protocol.segmentation_penalty)
-            if demo.success and len(demo.stage_bounds) == 2 * len(env.expert_plan()):
-                demos.append(demo)
-                progress.update()
-                if len(demos) == n:
-                    break
-    return demos
-
-
-def train_two_level(ctx: RunContext, env, demos, planner_input: str = "full"):
-    """Task classifier c(x), sub-goal planner (observing ``planner_input``, see
-    :func:`~hrc_lab.motion.two_level.correction_input`) and neural dynamic planner from the demonstrations."""
-    from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier
-    from hrc_lab.motion.two_level import classifier_pairs, correction_pairs, dynamics_pairs
-
-    classifier = StageClassifier(ctx.cfg.motion.classifier, 4, seed=ctx.seed).fit(*classifier_pairs(demos),
-                                                                               lambda: ctx.trainer("classifier"))
-    pairs = correction_pairs(demos, tuple(ctx.cfg.protocol.stage_starts), planner_input)
-    planner = MOTIONS.build(ctx.cfg.motion, n_labels=4, n_subgoals=ctx.cfg.protocol.subgoals_per_stage, seed=ctx.seed)
-    planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"), pairs.indices)
-    ndp = DynamicPlanner(ctx.cfg.motion.ndp, env.max_joint_step, env.base_position(), seed=ctx.seed)
-    ndp.fit(*dynamics_pairs(demos), lambda: ctx.trainer("ndp"))
-    return classifier, planner, ndp
 
 
 def table_3_1(ctx: RunContext) -> dict[str, float]:
@@ -62,9 +20,12 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
 
     config, protocol = ctx.cfg.env, ctx.cfg.protocol
     env = ENVS.build(config, seed=ctx.seed)
-    demos = correction_demos(env, protocol.demos, protocol, f"demos {config.cell}", protocol.placement_noise,
-                             ctx.rng(5), protocol.action_noise, ctx.rng(6))
-    classifier, planner, ndp = train_two_level(ctx, env, demos, protocol.planner_input)
+    demos = correction_demos(env, protocol.demos, protocol.subgoals_per_stage, protocol.segmentation_penalty,
+                             f"demos {config.cell}", protocol.placement_noise, ctx.rng(5), protocol.action_noise,
+                             ctx.rng(6))
+    classifier, planner, ndp = train_two_level(ctx.cfg.motion, env, demos, protocol.stage_starts,
+                                               protocol.subgoals_per_stage, ctx.trainer, ctx.seed,
+                                               protocol.planner_input)
     test = ENVS.build(config, seed=1000 + ctx.seed)
     rows, stage_rows = [], []
     for trial in tqdm(range(protocol.trials), desc=f"table 3.1 {config.cell}", unit="trial"):
@@ -138,7 +99,8 @@ def fig_3_10(ctx: RunContext) -> dict[str, float]:
     for task in ("one_object", "two_object"):
         for case in (1, 2):
             config = ENVS.derive(ctx.cfg.env, task=task, sim=dataclasses.replace(ctx.cfg.env.sim, case=case))
-            demos += correction_demos(ENVS.build(config, seed=ctx.seed), protocol.demos_per_case, protocol,
+            demos += correction_demos(ENVS.build(config, seed=ctx.seed), protocol.demos_per_case,
+                                      protocol.subgoals_per_stage, protocol.segmentation_penalty,
                                       f"demos {config.cell}")
     env = ENVS.build(ENVS.derive(ctx.cfg.env, task="place"), seed=ctx.seed)
     r, s, a = dynamics_pairs(demos)

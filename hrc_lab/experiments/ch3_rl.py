@@ -3,7 +3,7 @@ ratio lambda), Fig. 3.12 (place and stack, direction-only NDP guidance vs none) 
 distance to the planner's sub-goal, the goal-state positional difference, in guided vs unguided exploration).
 
 The two-level planner (task classifier c(x), sub-goal planner h, neural dynamic planner d) is trained from the
-scripted expert's demonstrations as in Table 3.1 (:func:`hrc_lab.experiments.ch3_motion.train_two_level`); it then
+scripted expert's demonstrations as in Table 3.1 (:func:`hrc_lab.motion.training.train_two_level`); it then
 guides a stable-baselines3 DDPG + HER agent (:mod:`hrc_lab.rl`) in a fraction ``rl.lam`` of the episodes.
 
 **Epoch**: the HER reference implementation's, which the thesis' 550 epochs are read as (:mod:`hrc_lab.rl.trainer`):
@@ -30,18 +30,6 @@ from hrc_lab.experiments.context import RunContext
 AGENTS_DIR = "agents"
 
 
-def evaluation_env(env_cfg, rl_cfg, seed: int, subtask: int):
-    """The held-out scenes a run's agent of ``subtask`` is evaluated on (its own seed stream, apart from training)."""
-    from hrc_lab.rl.goal_env import make_goal_env
-
-    return make_goal_env(env_cfg, rl_cfg, seed=10_000 + seed, subtask=subtask)
-
-
-def evaluation_seed(epoch: int) -> int:
-    """The first scene seed of epoch ``epoch``'s evaluation (episode k: this + k)."""
-    return 1000 * epoch
-
-
 def guided(ctx: RunContext) -> bool:
     """Whether the run's agent is ever guided (``rl=ddpg_her_guided`` with lambda > 0)."""
     return ctx.cfg.rl.name == "ddpg_her_guided" and ctx.cfg.rl.lam > 0
@@ -50,16 +38,18 @@ def guided(ctx: RunContext) -> bool:
 def train_guide(ctx: RunContext):
     """The Ch.3 two-level planner from ``protocol.demos`` expert demonstrations (as Table 3.1), as Algorithm 1's
     guide (:class:`~hrc_lab.rl.guidance.CorrectionGuide`)."""
-    from hrc_lab.experiments.ch3_motion import correction_demos, train_two_level
+    from hrc_lab.motion.demonstrations import correction_demos
+    from hrc_lab.motion.training import train_two_level
     from hrc_lab.rl.guidance import CorrectionGuide
 
     protocol = ctx.cfg.protocol
     env = ENVS.build(ctx.cfg.env, seed=ctx.seed)
-    demos = correction_demos(env, protocol.demos, protocol, f"demos {ctx.cfg.env.cell}", protocol.placement_noise,
-                             ctx.rng(5))
+    demos = correction_demos(env, protocol.demos, protocol.subgoals_per_stage, protocol.segmentation_penalty,
+                             f"demos {ctx.cfg.env.cell}", protocol.placement_noise, ctx.rng(5))
     if not demos:
         raise RuntimeError(f"no successful expert demonstration in {protocol.demos} for {ctx.cfg.env.cell}")
-    classifier, planner, ndp = train_two_level(ctx, env, demos)
+    classifier, planner, ndp = train_two_level(ctx.cfg.motion, env, demos, protocol.stage_starts,
+                                               protocol.subgoals_per_stage, ctx.trainer, ctx.seed)
     ctx.tracker.log_torch_model(planner.network, "model/subgoal.pt")
     ctx.tracker.log_torch_model(ndp.network, "model/ndp.pt")
     return CorrectionGuide.from_config(ctx.cfg.rl, classifier, planner, ndp, protocol.subgoals_per_stage)
@@ -131,6 +121,7 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
     the final agents as artifacts."""
     from hrc_lab.rl import RLS
     from hrc_lab.rl.agent import evaluate
+    from hrc_lab.rl.evaluation import evaluation_env, evaluation_seed
     from hrc_lab.rl.goal_env import make_goal_env
     from hrc_lab.rl.trainer import completed_epochs, episodes_per_epoch, train_epochs
 
@@ -206,11 +197,10 @@ def fig_3_9(ctx: RunContext) -> dict[str, float]:
     on the same seeded scenes. In the unguided arm the guide only keeps track of its sub-goals; it never acts.
     Per control step, the mean over episodes is logged as ``distance_guided`` / ``distance_unguided`` with step =
     control step; ``goal_distance_*`` is the end effector's distance to the task goal (the object's goal)."""
-    import dataclasses
-
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from hrc_lab.rl.agent import build_guided_ddpg_her, learn_episodes
+    from hrc_lab.rl import RLS
+    from hrc_lab.rl.agent import learn_episodes
     from hrc_lab.rl.goal_env import make_goal_env
     from hrc_lab.rl.guidance import GuidedEnv
 
@@ -237,17 +227,17 @@ def fig_3_9(ctx: RunContext) -> dict[str, float]:
             eef = env.cell.eef_position()
             rows.append({"arm": self.arm, "episode": self.episode, "step": env.elapsed_steps,
                          "distance": float(np.linalg.norm(eef - subgoal)),
-                         "goal_distance": float(np.linalg.norm(eef - env._desired[:3]))})
+                         "goal_distance": float(np.linalg.norm(eef - env.desired_goal()[:3]))})
             return True
 
     for arm, lam in (("guided", 1.0), ("unguided", 0.0)):
-        rl = dataclasses.replace(ctx.cfg.rl, lam=lam,
-                                 learning_starts=protocol.episodes * ctx.cfg.rl.steps_per_subtask * 10 + 1)
+        rl = RLS.derive(ctx.cfg.rl, lam=lam,
+                        learning_starts=protocol.episodes * ctx.cfg.rl.steps_per_subtask * 10 + 1)
         env = make_goal_env(ctx.cfg.env, rl, seed=ctx.seed, subtask=0)
         env.reset(seed=ctx.seed)  # the same scenes for both arms
         if lam:
             env = GuidedEnv(env, guide, lam, rl.delta_g, seed=ctx.seed)
-        agent = build_guided_ddpg_her(rl, env, seed=ctx.seed)
+        agent = RLS.build(rl, env=env, seed=ctx.seed)
         learn_episodes(agent, protocol.episodes, Distances(arm))
         env.close()
     frame = pd.DataFrame(rows)

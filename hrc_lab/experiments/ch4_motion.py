@@ -12,24 +12,11 @@ from sklearn.model_selection import GroupKFold
 from tqdm import tqdm
 
 from hrc_lab.env import ENVS
-from hrc_lab.env.robot.spec import combinations, goal_configurations, position_ranges, sample_episode
+from hrc_lab.env.robot.spec import goal_configurations, position_ranges, sample_episode
 from hrc_lab.experiments.context import RunContext
 from hrc_lab.motion import MOTIONS
-
-
-def fixed_goal_configurations(spec) -> list:
-    """Training orders in which every selection is packed one way: the k-th lowest product into slot k (each
-    product "only allowed to be manipulated to one goal position" per selection, 4.4.2.1)."""
-    return [tuple((product, k) for k, product in enumerate(selection)) for selection in combinations(spec)]
-
-
-def collect_demos(env, n: int, desc: str) -> list:
-    from hrc_lab.env.robot.expert import ScriptedExpert
-    from hrc_lab.experiments.collect import record_episode
-
-    expert = ScriptedExpert(env)
-    demos = [record_episode(env, expert) for _ in tqdm(range(n), desc=desc, unit="demo")]
-    return [d for d in demos if d.success]
+from hrc_lab.motion.demonstrations import collect_demos, fixed_goal_configurations
+from hrc_lab.motion.training import train_motion_module
 
 
 def cross_validated_r2(ctx: RunContext, pairs, folds: int) -> float:
@@ -47,25 +34,6 @@ def cross_validated_r2(ctx: RunContext, pairs, folds: int) -> float:
     return float(np.mean(scores))
 
 
-def train_motion_module(ctx: RunContext, env, demos, max_steps: int, tolerance: float):
-    """Ours (4.2.2): the run's sub-goal planner (``motion``) on the demonstrations' sub-goal pairs and the neural
-    dynamic planner on their steps (joint limit and base frame of the cell ``env``), as a
-    :class:`~hrc_lab.motion.two_level.TwoLevelMotion`."""
-    from hrc_lab.motion.subgoal import DynamicPlanner
-    from hrc_lab.motion.two_level import DESIGNED_SUBGOALS, TwoLevelMotion, dynamics_pairs, package_pairs
-
-    spec, motion = ctx.cfg.env, ctx.cfg.motion
-    pairs = package_pairs(demos)
-    planner = MOTIONS.build(motion, n_labels=1 + spec.slots, n_subgoals=DESIGNED_SUBGOALS, seed=ctx.seed)
-    planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: ctx.trainer("subgoal"), pairs.indices)
-    ndp = DynamicPlanner(motion.ndp, env.max_joint_step, env.base_position(), seed=ctx.seed)
-    ndp.fit(*dynamics_pairs(demos), lambda: ctx.trainer("ndp"))
-    for name, model in (("subgoal", getattr(planner, "network", None)), ("ndp", ndp.network)):
-        if model is not None:
-            ctx.tracker.log_torch_model(model, f"model/{name}.pt")
-    return TwoLevelMotion(planner, ndp, DESIGNED_SUBGOALS, max_steps, tolerance)
-
-
 def sampled_ranges(spec, rng, repeats: int = 5) -> dict[str, float]:
     """Sec. 4.4.3's ranges as the cell's scene sampler draws them (the test envs sample scenes from the same spec):
     ``repeats`` scenes of every goal configuration."""
@@ -81,7 +49,8 @@ def table_4_2(ctx: RunContext) -> dict[str, float]:
     demos = collect_demos(train_env, protocol.demos, f"demos {spec.cell}")
     pairs = package_pairs(demos)
     r2 = cross_validated_r2(ctx, pairs, protocol.cv_folds)
-    module = train_motion_module(ctx, train_env, demos, protocol.max_steps_per_subgoal, protocol.tolerance)
+    module = train_motion_module(motion, spec.slots, train_env, demos, protocol.max_steps_per_subgoal,
+                                 protocol.tolerance, ctx.trainer, ctx.seed, ctx.tracker.log_torch_model)
 
     # tests: every goal configuration (permutations unseen in training), CASE 1 and CASE 2 alternating
     test_envs = [ENVS.build(ENVS.derive(spec, sim=dataclasses.replace(spec.sim, case=c)), seed=1000 + ctx.seed)

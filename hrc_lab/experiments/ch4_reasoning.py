@@ -8,7 +8,6 @@ start of each of its 2n picking and placing stages is right (Sec. 4.4.1).
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 
 import numpy as np
@@ -24,40 +23,19 @@ from hrc_lab.env.robot.spec import (
     configurations_of,
     goal_configurations,
     position_ranges,
-    sample_episode,
     stage_observations,
 )
 from hrc_lab.experiments.context import RunContext
 from hrc_lab.reasoning import REASONERS
 from hrc_lab.reasoning.base import Reasoner
+from hrc_lab.reasoning.episodes import demo_repeats, episodes_for, observations_of, random_episodes
+from hrc_lab.reasoning.training import train
 
 # Data and scoring ------------------------------------------------------------------------------------------------
 
 PICK_ERRORS = ("area", "packed", "unselected", "other")
 # per-head, per-stage accuracies and the kinds of picking errors, logged per case and ratio (Fig. 4.7) or scenario
 DIAGNOSTICS = ("acc_o_pick", "acc_o_place", "acc_g_pick", "acc_g_place", *(f"pick_error_{k}" for k in PICK_ERRORS))
-
-
-def episodes_for(spec, configurations, rng, repeats: int = 1, case: int = 1, n_missing=0) -> list[Episode]:
-    """``repeats`` episodes of every configuration with fresh random positions; ``n_missing`` may be a callable
-    drawing the number of absent products per episode."""
-    draw = n_missing if callable(n_missing) else (lambda: n_missing)
-    return [
-        sample_episode(spec, configuration, rng, case=case, n_missing=draw())
-        for configuration in configurations
-        for _ in range(repeats)
-    ]
-
-
-def random_episodes(spec, n: int, rng, case: int = 1, n_missing=0) -> list[Episode]:
-    """``n`` episodes of goal configurations drawn uniformly from all of them."""
-    configurations = goal_configurations(spec)
-    chosen = rng.integers(len(configurations), size=n)
-    return episodes_for(spec, [configurations[i] for i in chosen], rng, case=case, n_missing=n_missing)
-
-
-def observations_of(episodes: list[Episode]) -> list:
-    return [obs for episode in episodes for obs in stage_observations(episode)]
 
 
 def evaluate(reasoner: Reasoner, episodes: list[Episode]) -> dict[str, float]:
@@ -113,18 +91,6 @@ def measure_latency(reasoner: Reasoner, observations: list, n_single: int = 100)
     return {"latency_ms_batch1": 1e3 * float(np.median(singles)), "latency_ms_batched": 1e3 * batched}
 
 
-def train(ctx: RunContext, spec: PackageToOrderSpec, episodes: list[Episode], prefix: str) -> tuple[Reasoner, float]:
-    reasoner = REASONERS.build(ctx.cfg.reasoning, spec=spec, seed=ctx.seed)
-    start = time.perf_counter()
-    reasoner.fit(observations_of(episodes), ctx.trainer(prefix))
-    return reasoner, time.perf_counter() - start
-
-
-def demo_repeats(spec: PackageToOrderSpec, min_demos: int) -> int:
-    """Repeats of every goal configuration so that a full demo set has at least ``min_demos`` episodes."""
-    return max(1, math.ceil(min_demos / len(goal_configurations(spec))))
-
-
 def result_row(ctx: RunContext, **values) -> dict:
     return {"method": ctx.cfg.reasoning.name, "seed": ctx.seed, **values}
 
@@ -140,7 +106,7 @@ def table_4_1(ctx: RunContext) -> dict[str, float]:
     train_eps = [e for i, e in enumerate(episodes) if i not in test_index]
     test_eps = [e for i, e in enumerate(episodes) if i in test_index]
 
-    reasoner, train_s = train(ctx, spec, train_eps, prefix="")
+    reasoner, train_s = train(ctx.cfg.reasoning, spec, train_eps, ctx.trainer, ctx.seed)
     metrics = evaluate(reasoner, test_eps)
     metrics |= measure_latency(reasoner, observations_of(test_eps)) | position_ranges(test_eps)
     metrics |= {"train_s": train_s, "n_train_demos": float(len(train_eps))}
@@ -174,12 +140,14 @@ def fig_4_7(ctx: RunContext) -> dict[str, float]:
         rng = ctx.rng(10 + i)
         # CASE 1: unseen goal configurations (selections never trained on)
         seen, unseen = case1_split(spec, ratio, rng)
-        reasoner, _ = train(ctx, spec, episodes_for(spec, seen, rng), prefix=f"case1_lam{ratio}")
+        reasoner, _ = train(ctx.cfg.reasoning, spec, episodes_for(spec, seen, rng), ctx.trainer, ctx.seed,
+                            prefix=f"case1_lam{ratio}")
         case1 = evaluate(reasoner, episodes_for(spec, unseen, rng)) | {"n_train_demos": float(len(seen))}
         # CASE 2: unseen task structures from human intervention
         k = max(1, round(ratio * len(configurations)))
         trained = [configurations[j] for j in rng.permutation(len(configurations))[:k]]
-        reasoner, _ = train(ctx, spec, episodes_for(spec, trained, rng), prefix=f"case2_lam{ratio}")
+        reasoner, _ = train(ctx.cfg.reasoning, spec, episodes_for(spec, trained, rng), ctx.trainer, ctx.seed,
+                            prefix=f"case2_lam{ratio}")
         case2 = evaluate(reasoner, random_episodes(spec, protocol.case2_tests, rng, case=2))
         case2 |= {"n_train_demos": float(k)}
         for case, result in (("case1", case1), ("case2", case2)):
@@ -205,7 +173,7 @@ def practical(ctx: RunContext) -> dict[str, float]:
         partial = random_episodes(spec, protocol.partial_demos, rng, n_missing=draw_missing)
         tests = random_episodes(spec, protocol.missing_tests, rng, n_missing=draw_missing)
         for label, demos in (("missing_without_partial", full), ("missing", full + partial)):
-            reasoner, _ = train(ctx, spec, demos, prefix=label)
+            reasoner, _ = train(ctx.cfg.reasoning, spec, demos, ctx.trainer, ctx.seed, prefix=label)
             result = evaluate(reasoner, tests)
             metrics[f"{label}_sr"] = result["sr"]
             metrics |= {f"{label}_{key}": result[key] for key in DIAGNOSTICS}
@@ -213,7 +181,8 @@ def practical(ctx: RunContext) -> dict[str, float]:
 
     train_spec = dataclasses.replace(spec, n_selected=protocol.train_selected, n_slots=protocol.slots)
     demos = episodes_for(train_spec, goal_configurations(train_spec), rng, demo_repeats(train_spec, protocol.min_demos))
-    reasoner, _ = train(ctx, train_spec, demos, prefix=f"order_size_{train_spec.cell}")
+    reasoner, _ = train(ctx.cfg.reasoning, train_spec, demos, ctx.trainer, ctx.seed,
+                        prefix=f"order_size_{train_spec.cell}")
     for n in tqdm(protocol.test_selected, desc="order sizes", unit="size"):
         test_spec = dataclasses.replace(train_spec, n_selected=n)
         for case in (1, 2):
@@ -242,7 +211,7 @@ def fig_4_9(ctx: RunContext) -> dict[str, float]:
     spec, protocol = ctx.cfg.env, ctx.cfg.protocol
     rng = ctx.rng(30)
     demos = episodes_for(spec, goal_configurations(spec), rng, demo_repeats(spec, protocol.min_demos))
-    reasoner, _ = train(ctx, spec, demos, prefix="")
+    reasoner, _ = train(ctx.cfg.reasoning, spec, demos, ctx.trainer, ctx.seed)
     metrics: dict[str, float] = {}
     for case in (1, 2):
         observations = stage_observations(random_episodes(spec, 1, rng, case=case)[0])

@@ -29,11 +29,15 @@ from hrc_lab.experiments.context import RunContext
 CASES = (1, 2)
 
 
+def case_spec(ctx: RunContext, case: int):
+    """The run's cell config in CASE ``case``."""
+    spec = ctx.cfg.env
+    return ENVS.derive(spec, sim=dataclasses.replace(spec.sim, case=case))
+
+
 def case_cell(ctx: RunContext, case: int, **render):
     """The run's cell in CASE ``case``, seeded like every system's test cells."""
-    spec = ctx.cfg.env
-    return ENVS.build(ENVS.derive(spec, sim=dataclasses.replace(spec.sim, case=case)), seed=1000 + ctx.seed,
-                      **render)
+    return ENVS.build(case_spec(ctx, case), seed=1000 + ctx.seed, **render)
 
 
 def render_args(protocol) -> dict:
@@ -47,11 +51,12 @@ def render_args(protocol) -> dict:
 def train_reasoner(ctx: RunContext):
     """The reasoning module on CASE 1 task episodes of every goal configuration (as Table 4.1's full demo set)."""
     from hrc_lab.env.robot.spec import goal_configurations
-    from hrc_lab.experiments.ch4_reasoning import demo_repeats, episodes_for, train
+    from hrc_lab.reasoning.episodes import demo_repeats, episodes_for
+    from hrc_lab.reasoning.training import train
 
     spec = ctx.cfg.env
     episodes = episodes_for(spec, goal_configurations(spec), ctx.rng(0), demo_repeats(spec, ctx.cfg.protocol.min_demos))
-    reasoner, seconds = train(ctx, spec, episodes, prefix="reasoning")
+    reasoner, seconds = train(ctx.cfg.reasoning, spec, episodes, ctx.trainer, ctx.seed, prefix="reasoning")
     if hasattr(reasoner, "network"):
         ctx.tracker.log_torch_model(reasoner.network, "model/reasoner.pt")
     ctx.tracker.log_metrics({"reasoning_train_s": seconds})
@@ -62,8 +67,9 @@ def build_motion(ctx: RunContext):
     """Ours: the two-level motion module trained on CASE 1 robot demonstrations (as Table 4.2, or over every goal
     configuration with ``protocol.motion_demos=all``); otherwise the ``motion`` group's planner (RRT-Connect), which
     needs no training."""
-    from hrc_lab.experiments.ch4_motion import collect_demos, fixed_goal_configurations, train_motion_module
     from hrc_lab.motion import MOTIONS
+    from hrc_lab.motion.demonstrations import collect_demos, fixed_goal_configurations
+    from hrc_lab.motion.training import train_motion_module
 
     protocol, spec = ctx.cfg.protocol, ctx.cfg.env
     if ctx.cfg.tamp.name != "ours":
@@ -72,7 +78,8 @@ def build_motion(ctx: RunContext):
     if protocol.motion_demos == "fixed":
         train_env.configurations = fixed_goal_configurations(spec)
     demos = collect_demos(train_env, protocol.demos, f"demos {spec.cell}")
-    module = train_motion_module(ctx, train_env, demos, protocol.max_steps_per_subgoal, protocol.tolerance)
+    module = train_motion_module(ctx.cfg.motion, spec.slots, train_env, demos, protocol.max_steps_per_subgoal,
+                                 protocol.tolerance, ctx.trainer, ctx.seed, ctx.tracker.log_torch_model)
     train_env.close()
     return module
 
@@ -192,11 +199,10 @@ def drl_episode(agent, goal_env) -> dict:
 
 
 def drl_goal_env(ctx: RunContext, case: int, **render):
-    from hrc_lab.rl.goal_env import HRCGoalEnv, task_switches
+    """The DRL agent's goal env on the run's test cell in CASE ``case`` (:func:`case_cell`'s config and seed)."""
+    from hrc_lab.rl.goal_env import make_goal_env
 
-    rl = ctx.cfg.rl
-    goal_env = HRCGoalEnv(case_cell(ctx, case, **render), steps_per_subtask=rl.steps_per_subtask,
-                          delta_r=rl.delta_r, **task_switches(rl))
+    goal_env = make_goal_env(case_spec(ctx, case), ctx.cfg.rl, seed=1000 + ctx.seed, **render)
     goal_env.cell.reseed(1000 + ctx.seed)  # its first scene is the first trial's, as for the other systems
     return goal_env
 

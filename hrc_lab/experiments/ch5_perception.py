@@ -28,7 +28,6 @@ from tqdm import tqdm
 
 from hrc_lab.env.assembly.spec import action_labels, scenarios
 from hrc_lab.env.assembly.video import Clip, render_action_clip, render_session
-from hrc_lab.experiments.ch5_planner import train_planner
 from hrc_lab.experiments.context import RunContext
 from hrc_lab.perception.action_detector import ActionDetector, action_windows
 from hrc_lab.perception.dataset import ActionSet, action_set_key, cached_action_set, stored_sizes, stratified_split
@@ -40,6 +39,7 @@ from hrc_lab.perception.robot_cell import CellHands, SideBySide
 from hrc_lab.perception.sessions import run_session
 from hrc_lab.perception.video_io import read_video, write_video
 from hrc_lab.reasoning.hrc_loop import SemanticPlannerLoop
+from hrc_lab.reasoning.training import train_planner
 
 SPLIT, SESSIONS = 60, 61  # random streams
 log = logging.getLogger("hrc_lab")
@@ -120,7 +120,8 @@ def assembly_sessions(ctx: RunContext, with_robot: bool) -> dict[str, float]:
     everything = scenarios(spec)
     rng = ctx.rng(SESSIONS)
     chosen = rng.permutation(len(everything))[: max(1, round(protocol.train_ratio * len(everything)))]
-    planner = train_planner(ctx, spec, [everything[j] for j in chosen], prefix="planner")
+    planner = train_planner(ctx.cfg.reasoning, spec, [everything[j] for j in chosen], ctx.trainer, ctx.seed,
+                            prefix="planner")
     cell, view = robot_cell(ctx, render=protocol.video) if with_robot else (None, None)
     rows, results = [], {"normal": [], "fast": []}
     total = protocol.sessions + protocol.fast_sessions
@@ -228,7 +229,7 @@ def annotate_video(ctx: RunContext) -> dict[str, float]:
     data = action_set(ctx)
     detector = shared_detector(ctx, data)
     everything = scenarios(spec)
-    planner = train_planner(ctx, spec, everything, prefix="planner")
+    planner = train_planner(ctx.cfg.reasoning, spec, everything, ctx.trainer, ctx.seed, prefix="planner")
     if protocol.input is None:
         clip, _ = render_session(spec, spec.video, 0, ctx.seed, 0.3, fast=False)
         frames, fps = list(clip.frames), spec.video.fps

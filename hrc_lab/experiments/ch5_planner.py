@@ -21,15 +21,9 @@ from hrc_lab.env.assembly.spec import (
     scenarios,
 )
 from hrc_lab.experiments.context import RunContext
-from hrc_lab.reasoning import REASONERS
 from hrc_lab.reasoning.hrc_loop import SemanticPlannerLoop
 from hrc_lab.reasoning.semantic_planner import SemanticPlanner, score_plans
-
-
-def train_planner(ctx: RunContext, spec: AssembleToOrderSpec, train: list[Scenario], prefix: str) -> SemanticPlanner:
-    planner = REASONERS.build(ctx.cfg.reasoning, spec=spec, seed=ctx.seed)
-    planner.fit(train, ctx.trainer(prefix))
-    return planner
+from hrc_lab.reasoning.training import train_planner
 
 
 def evaluate_all(planner: SemanticPlanner, spec: AssembleToOrderSpec, tests: list[Scenario]) -> dict[str, float]:
@@ -59,7 +53,8 @@ def fig_5_7(ctx: RunContext) -> dict[str, float]:
     rows = []
     for i, (key, size) in enumerate(tqdm(sizes.items(), desc=f"fig 5.7 {spec.cell}", unit="ratio")):
         chosen = ctx.rng(40 + i).permutation(len(everything))[:size]
-        planner = train_planner(ctx, spec, [everything[j] for j in chosen], prefix=key)
+        planner = train_planner(ctx.cfg.reasoning, spec, [everything[j] for j in chosen], ctx.trainer, ctx.seed,
+                                prefix=key)
         result = evaluate_all(planner, spec, everything)
         metrics[f"sr_{key}"] = result["sr"]
         rows.append(
@@ -110,7 +105,7 @@ def table_5_2_planner(ctx: RunContext) -> dict[str, float]:
     everything = scenarios(spec)
     rng = ctx.rng(50)
     chosen = rng.permutation(len(everything))[: max(1, round(protocol.train_ratio * len(everything)))]
-    planner = train_planner(ctx, spec, [everything[j] for j in chosen], prefix="")
+    planner = train_planner(ctx.cfg.reasoning, spec, [everything[j] for j in chosen], ctx.trainer, ctx.seed)
 
     sg, sc, rows = [], [], []
     for i in tqdm(range(protocol.sessions), desc=f"sessions {spec.cell}", unit="session"):

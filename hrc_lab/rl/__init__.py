@@ -13,7 +13,9 @@ guidance of Algorithm 1; ``conf/rl/<name>.yaml`` selects an agent by ``name``.
 - :mod:`~hrc_lab.rl.ddpg`: stable-baselines3's DDPG with the HER paper's action penalty, random exploration
   actions and clipped critic targets (``HerDDPG``), the base of both agents;
 - :mod:`~hrc_lab.rl.agent`: the stable-baselines3 agents built from an ``rl`` config (``RLS.build``), training
-  by episodes, evaluation, and checkpoints for MLflow.
+  by episodes, evaluation, and checkpoints for MLflow;
+- :mod:`~hrc_lab.rl.evaluation`: the held-out evaluation scenes of Ch.3's agents (their seed stream), which a saved
+  agent's evaluation is replayed on.
 """
 
 from hrc_lab.rl.configs import RLS

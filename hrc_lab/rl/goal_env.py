@@ -383,14 +383,15 @@ class HRCGoalEnv(gym.Env):
 
 
 def make_goal_env(env_cfg: Any, rl_cfg: Any, seed: int | None = None, subtask: int | None = 0,
-                  cases: tuple[int, ...] = ()) -> HRCGoalEnv:
-    """The goal env of an ``env`` config of a robot cell (what ``ENVS.build`` makes of it) and an ``rl`` config
-    (``steps_per_subtask``, ``delta_r``, ``suction``, ``start``, ``yaw_symmetry``, ``wrist3``, ``release``);
-    ``subtask`` as in :class:`HRCGoalEnv` (error correction only); ``cases``: a package-to-order cell draws its CASE
-    from these per episode (the DRL baseline of Table 4.3 trains on both)."""
+                  cases: tuple[int, ...] = (), **cell_kwargs: Any) -> HRCGoalEnv:
+    """The goal env of an ``env`` config of a robot cell (what ``ENVS.build`` makes of it, with ``cell_kwargs``, e.g.
+    an off-screen renderer) and an ``rl`` config (``steps_per_subtask``, ``delta_r``, ``suction``, ``start``,
+    ``yaw_symmetry``, ``wrist3``, ``release``); ``subtask`` as in :class:`HRCGoalEnv` (error correction only);
+    ``cases``: a package-to-order cell draws its CASE from these per episode (the DRL baseline of Table 4.3 trains on
+    both)."""
     from hrc_lab.env import ENVS
 
-    cell = ENVS.build(env_cfg, seed=seed)
+    cell = ENVS.build(env_cfg, seed=seed, **cell_kwargs)
     return HRCGoalEnv(cell, subtask=subtask, steps_per_subtask=rl_cfg.steps_per_subtask, delta_r=rl_cfg.delta_r,
                       cases=cases, suction=rl_cfg.suction, start=rl_cfg.start, **task_switches(rl_cfg))
 

@@ -1,0 +1,19 @@
+"""The held-out scenes a Ch.3 agent is evaluated on after every epoch (Fig. 3.12 / 3.13, :mod:`~hrc_lab.rl.trainer`):
+their own seed stream, apart from the training and demonstration scenes, so that a saved agent's evaluation can be
+replayed scene for scene (``scripts/rl_final_policies.py``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def evaluation_env(env_cfg: Any, rl_cfg: Any, seed: int, subtask: int):
+    """The held-out scenes a run's agent of ``subtask`` is evaluated on (its own seed stream, apart from training)."""
+    from hrc_lab.rl.goal_env import make_goal_env
+
+    return make_goal_env(env_cfg, rl_cfg, seed=10_000 + seed, subtask=subtask)
+
+
+def evaluation_seed(epoch: int) -> int:
+    """The first scene seed of epoch ``epoch``'s evaluation (episode k: this + k)."""
+    return 1000 * epoch
