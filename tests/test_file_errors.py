@@ -11,12 +11,12 @@ import torch
 
 from hrc_lab.data.demos import Demo, DemoWriter, read_demos
 from hrc_lab.data.files import DataFileError, load_torch
+from hrc_lab.data.video_io import read_video
 from hrc_lab.env.clutter.scenes import load_scenes, save_scenes
 from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene
 from hrc_lab.grasp.detector import DetectorConfig
 from hrc_lab.grasp.detector_cache import load_or_train_detector
 from hrc_lab.perception.dataset import ActionSet
-from hrc_lab.perception.video_io import read_video
 
 
 def raises(path, phrase: str):

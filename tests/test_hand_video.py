@@ -184,9 +184,9 @@ def test_the_loop_drives_the_robot_cell_on_a_short_session(monkeypatch):
     the screw makes the robot pick and place the expert's part, the session ends with the goal assembled, and
     the side-by-side video holds the worker's frames plus the robot's motion."""
     from hrc_lab.env.robot.factory import make_env
+    from hrc_lab.env.robot.recorder import FrameRecorder
     from hrc_lab.env.robot.settings import AssembleToOrderConfig
     from hrc_lab.perception import sessions
-    from hrc_lab.tamp.video import FrameRecorder
 
     spec = AssembleToOrderConfig(product={"o1": 1, "o2": 1}, n_positions=2, goals=[["o1", "o2"]], n_goals=1,
                                  allowed_positions={"o1": [1, 2], "o2": [1, 2]})

@@ -118,8 +118,8 @@ def tamp_trials(ctx: RunContext, reasoner, motion) -> pd.DataFrame:
 
 
 def tamp_videos(ctx: RunContext, reasoner, motion) -> list:
+    from hrc_lab.env.robot.recorder import FrameRecorder, save_video
     from hrc_lab.tamp.algorithm2 import run_tamp
-    from hrc_lab.tamp.video import FrameRecorder, save_video
 
     protocol, paths = ctx.cfg.protocol, []
     for case in CASES:
@@ -219,7 +219,7 @@ def drl_trials(ctx: RunContext, agent) -> pd.DataFrame:
 
 
 def drl_videos(ctx: RunContext, agent) -> list:
-    from hrc_lab.tamp.video import FrameRecorder, save_video
+    from hrc_lab.env.robot.recorder import FrameRecorder, save_video
 
     protocol, paths = ctx.cfg.protocol, []
     for case in CASES:

@@ -13,7 +13,7 @@ cache (:mod:`~hrc_lab.perception.dataset`), its windows at a method's sizes
 (:func:`~hrc_lab.perception.action_detector.action_windows`), the shared detector
 (:mod:`~hrc_lab.perception.detector_cache`), session scoring (:mod:`~hrc_lab.perception.sessions`), latency
 (:mod:`~hrc_lab.perception.latency`), figures (:mod:`~hrc_lab.perception.figures`) and video files
-(:mod:`~hrc_lab.perception.video_io`).
+(:mod:`~hrc_lab.data.video_io`).
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
+from hrc_lab.data.video_io import read_video, write_video
 from hrc_lab.env.assembly.spec import action_labels, scenarios
 from hrc_lab.env.assembly.video import Clip, render_action_clip, render_session
 from hrc_lab.experiments.context import RunContext
@@ -37,7 +38,6 @@ from hrc_lab.perception.latency import classify_ms, tracking_ms_per_frame
 from hrc_lab.perception.pipeline import annotate_frames
 from hrc_lab.perception.robot_cell import CellHands, SideBySide
 from hrc_lab.perception.sessions import run_session
-from hrc_lab.perception.video_io import read_video, write_video
 from hrc_lab.reasoning.hrc_loop import SemanticPlannerLoop
 from hrc_lab.reasoning.training import train_planner
 
@@ -173,8 +173,8 @@ def robot_cell(ctx: RunContext, render: bool):
     """The assembly robot cell of the run's env spec (seeded), and with ``render`` a renderer of its worker-side
     camera at the annotated frames' height (twice the video's), or None."""
     from hrc_lab.env import ENVS
+    from hrc_lab.env.robot.recorder import FrameRecorder
     from hrc_lab.env.robot.settings import CELL_CAMERA
-    from hrc_lab.tamp.video import FrameRecorder
 
     video = ctx.cfg.env.video
     if not render:

@@ -287,8 +287,8 @@ def robot_video(ctx: RunContext, episode_of, scene: ClutterScene, spec: ClutterS
     """One episode again, filmed from the cell's side camera with each decision as the caption
     (``robot_episode.mp4`` and its strip)."""
     from hrc_lab.env.robot.clutter_cell import ClutterCell
+    from hrc_lab.env.robot.recorder import FrameRecorder, save_video
     from hrc_lab.env.robot.settings import CELL_CAMERA
-    from hrc_lab.tamp.video import FrameRecorder, save_video
 
     cell = ClutterCell(spec, seed=ctx.seed, render=True)
     try:

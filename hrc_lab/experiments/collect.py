@@ -96,7 +96,7 @@ def render_demo(ctx: RunContext) -> dict[str, float]:
     from hydra.core.hydra_config import HydraConfig
 
     from hrc_lab.env.robot.expert import ScriptedExpert
-    from hrc_lab.tamp.video import FrameRecorder, save_video
+    from hrc_lab.env.robot.recorder import FrameRecorder, save_video
 
     protocol = ctx.cfg.protocol
     scenario = getattr(ctx.cfg.env, "scenario", ctx.cfg.env.cell)

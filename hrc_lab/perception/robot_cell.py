@@ -18,14 +18,14 @@ import numpy as np
 
 if TYPE_CHECKING:
     from hrc_lab.env.robot.assembly_cell import AssemblyCell, Placement
-    from hrc_lab.tamp.video import FrameRecorder
+    from hrc_lab.env.robot.recorder import FrameRecorder
 
 log = logging.getLogger("hrc_lab")
 
 
 class SideBySide:
     """The side-by-side video: the worker's annotated frame | the robot cell (``view``, a
-    :class:`~hrc_lab.tamp.video.FrameRecorder` used for its ``frame()``), the cell re-rendered only when it
+    :class:`~hrc_lab.env.robot.recorder.FrameRecorder` used for its ``frame()``), the cell re-rendered only when it
     changed; while the robot moves, every ``view.frame_skip``-th control step adds a frame with the worker's last
     annotated frame held."""
 

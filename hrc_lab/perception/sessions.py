@@ -25,8 +25,8 @@ from hrc_lab.reasoning.hrc_loop import SemanticPlannerLoop
 
 if TYPE_CHECKING:
     from hrc_lab.env.robot.assembly_cell import AssemblyCell
+    from hrc_lab.env.robot.recorder import FrameRecorder
     from hrc_lab.perception.action_detector import ActionDetector
-    from hrc_lab.tamp.video import FrameRecorder
 
 
 def segments_of(labels: list[str]) -> list[tuple[str, int, int]]:

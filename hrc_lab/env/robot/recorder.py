@@ -1,6 +1,6 @@
-"""Videos of the learned systems (Table 4.3's report): a cell wrapper that renders every few control steps and
-writes the current decision on the frame, as the text overlay of the thesis' Fig. 4.12; files are written by
-:mod:`hrc_lab.perception.video_io`."""
+"""The robot cells' recorder: a cell wrapper that renders every few control steps and writes the current decision
+on the frame, as the text overlay of the thesis' Fig. 4.12 (the videos of Table 4.3, the demonstrations, the Ch.5
+loop and Ch.6's robot row); files are written by :mod:`hrc_lab.data.video_io`."""
 
 from __future__ import annotations
 
@@ -52,7 +52,7 @@ class FrameRecorder:
 def save_video(frames: list[np.ndarray], path: Path, fps: float) -> list[Path]:
     """``frames`` (RGB) as an MP4 at ``path`` and its four-frame strip beside it (``<stem>_strip.jpg``); both
     paths, for the run's artifacts."""
-    from hrc_lab.perception.video_io import write_strip, write_video
+    from hrc_lab.data.video_io import write_strip, write_video
 
     if not frames:
         raise ValueError(f"{path.name}: no frame was rendered (the trial ended before the first frame)")
