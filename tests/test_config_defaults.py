@@ -105,14 +105,18 @@ def uses() -> list[tuple[Path, type, str | None, str]]:
             for group in GROUPS:
                 for path in sorted((CONF / group).glob("*.yaml")):
                     preset = group in GLOBAL_PRESETS
-                    name = (compose("config", overrides=[f"{group}={path.stem}"]) if preset
-                            else compose(config_name=f"{group}/{path.stem}"))[group].name
+                    # the file's own name key (a composition only where it inherits the name from a parent file)
+                    name = (_raw(path).get(group) or {}).get("name") if preset else _raw(path).get("name")
+                    if name is None:
+                        name = (compose("config", overrides=[f"{group}={path.stem}"]) if preset
+                                else compose(config_name=f"{group}/{path.stem}"))[group].name
                     if name != "none":
                         found.append((path, registries[group].get(name).schema, group if preset else None,
                                       f"{group}/{name}"))
             for path in sorted((CONF / "experiment").rglob("*.yaml")):
                 experiment = path.relative_to(CONF / "experiment").with_suffix("").as_posix()
-                name = compose("config", overrides=[f"experiment={experiment}"]).protocol.name
+                name = (_raw(path).get("protocol") or {}).get("name") or compose(
+                    "config", overrides=[f"experiment={experiment}"]).protocol.name
                 found.append((path, PROTOCOLS.get(name).schema, "protocol", f"protocol/{name}"))
     finally:
         GlobalHydra.instance().clear()

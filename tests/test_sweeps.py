@@ -1,6 +1,6 @@
 """A real sweep through the console script and a Hydra launcher: a tiny Table 4.1 sweep (2 methods x 2 seeds) with
 hydra/launcher=joblib into a temporary MLflow store, the summary callback's table, then the report built from it.
-The one subprocess run of the default suite besides the config-error exit code check in test_config.py."""
+Slow (CI's slow step): the default suite's subprocess runs are the config-error exit code checks of test_config.py."""
 
 import os
 import shutil
@@ -9,6 +9,8 @@ import time
 
 import pytest
 from mlflow.tracking import MlflowClient
+
+pytestmark = pytest.mark.slow  # real sweeps of subprocesses (~1 min each): CI's slow step runs them
 
 TINY = ["trainer.max_epochs=1", "reasoning.steps=5", "protocol.min_demos=10"]
 
@@ -83,7 +85,6 @@ def test_report_command_writes_markdown_and_plot(joblib_sweep, tmp_path, capsys)
     assert f"wrote {tmp_path / 'ch4_reasoning.md'}" in capsys.readouterr().out
 
 
-@pytest.mark.slow
 def test_submitit_local_sweep(tmp_path, console_script):
     """submitit's real executor on local processes (the SLURM launcher's code path): a 2-job sweep lands as two
     FINISHED runs from two processes. Slow (~40 s): CI runs it in its own step."""
@@ -100,7 +101,6 @@ def test_submitit_local_sweep(tmp_path, console_script):
     assert len({r.data.tags["pid"] for r in jobs}) == 2  # one process per job
 
 
-@pytest.mark.slow
 def test_ray_launcher_sweep(tmp_path, console_script):
     """hydra-ray-launcher's local launcher (hydra/launcher=ray) starts a local Ray instance, runs a 2-job sweep as
     two FINISHED runs from two Ray worker processes, and every socket Ray listens on is loopback. Needs the separate

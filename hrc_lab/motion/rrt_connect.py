@@ -210,7 +210,7 @@ class RRTConnectMotion:
     def scratch_model(self, env) -> mujoco.MjModel:
         """A copy of ``env``'s model with contact margins of ``clearance_m`` on the arm, cup and products, its
         body poses synced with the live model (the cell moves its box per episode)."""
-        live = env.sim.model._model
+        live = env.mj_model
         if self._source is not live:
             model = copy.copy(live)
             robot = [g for g in env.arm_geoms | env.cup_geoms if model.body_weldid[model.geom_bodyid[g]] != 0]

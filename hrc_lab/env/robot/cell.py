@@ -428,6 +428,11 @@ class HRCCell(ManipulationEnv):
     # --- contacts ---------------------------------------------------------------------------------------------
 
     @property
+    def mj_model(self) -> mujoco.MjModel:
+        """The compiled MuJoCo model the cell simulates (robosuite's ``sim.model`` wraps it)."""
+        return self.sim.model._model
+
+    @property
     def arm_geoms(self) -> frozenset[int]:
         """Geom ids of the arm's links."""
         return frozenset(self._arm_geoms)
