@@ -1,6 +1,9 @@
 """Table 4.3 (thesis 4.4.3): the whole TAMP system in the robot cell against a flat DRL agent and against the
 reasoning module with RRT-Connect. One Hydra job = one (cell, system ``tamp``, seed).
 
+The system is ``TAMPS.build(cfg.tamp)`` (:mod:`hrc_lab.tamp.systems`), which trains its modules, runs the trials
+and renders its videos:
+
 - ``tamp=ours``: Algorithm 2 (:func:`hrc_lab.tamp.algorithm2.run_tamp`) with the reasoning module trained as in
   Table 4.1 and the two-level motion module trained as in Table 4.2, both on CASE 1 only;
 - ``tamp=rm_rrt_connect``: the same reasoning module (same data, same seed) with OMPL's RRT-Connect as the motion
@@ -16,228 +19,12 @@ DRL's are ``collision`` or ``goal`` (the order was not packed when the episode e
 
 from __future__ import annotations
 
-import dataclasses
-import time
-
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
-from hrc_lab.env import ENVS
 from hrc_lab.experiments.context import RunContext
-
-CASES = (1, 2)
-
-
-def case_spec(ctx: RunContext, case: int):
-    """The run's cell config in CASE ``case``."""
-    spec = ctx.cfg.env
-    return ENVS.derive(spec, sim=dataclasses.replace(spec.sim, case=case))
-
-
-def case_cell(ctx: RunContext, case: int, **render):
-    """The run's cell in CASE ``case``, seeded like every system's test cells."""
-    return ENVS.build(case_spec(ctx, case), seed=1000 + ctx.seed, **render)
-
-
-def render_args(protocol) -> dict:
-    return dict(has_offscreen_renderer=True, camera_names=protocol.camera, camera_heights=protocol.video_height,
-                camera_widths=protocol.video_width)
-
-
-# --- ours and RM+RRT-Connect --------------------------------------------------------------------------------------
-
-
-def train_reasoner(ctx: RunContext):
-    """The reasoning module on CASE 1 task episodes of every goal configuration (as Table 4.1's full demo set)."""
-    from hrc_lab.env.robot.spec import goal_configurations
-    from hrc_lab.reasoning.episodes import demo_repeats, episodes_for
-    from hrc_lab.reasoning.training import train
-
-    spec = ctx.cfg.env
-    episodes = episodes_for(spec, goal_configurations(spec), ctx.rng(0), demo_repeats(spec, ctx.cfg.protocol.min_demos))
-    reasoner, seconds = train(ctx.cfg.reasoning, spec, episodes, ctx.trainer, ctx.seed, prefix="reasoning")
-    if hasattr(reasoner, "network"):
-        ctx.tracker.log_torch_model(reasoner.network, "model/reasoner.pt")
-    ctx.tracker.log_metrics({"reasoning_train_s": seconds})
-    return reasoner
-
-
-def build_motion(ctx: RunContext):
-    """Ours: the two-level motion module trained on CASE 1 robot demonstrations (as Table 4.2, or over every goal
-    configuration with ``protocol.motion_demos=all``); otherwise the ``motion`` group's planner (RRT-Connect), which
-    needs no training."""
-    from hrc_lab.motion import MOTIONS
-    from hrc_lab.motion.demonstrations import collect_demos, fixed_goal_configurations
-    from hrc_lab.motion.training import train_motion_module
-
-    protocol, spec = ctx.cfg.protocol, ctx.cfg.env
-    if ctx.cfg.tamp.name != "ours":
-        return MOTIONS.build(ctx.cfg.motion, seed=ctx.seed)
-    train_env = ENVS.build(spec, seed=ctx.seed)
-    if protocol.motion_demos == "fixed":
-        train_env.configurations = fixed_goal_configurations(spec)
-    demos = collect_demos(train_env, protocol.demos, f"demos {spec.cell}")
-    module = train_motion_module(ctx.cfg.motion, spec.slots, train_env, demos, protocol.max_steps_per_subgoal,
-                                 protocol.tolerance, ctx.trainer, ctx.seed, ctx.tracker.log_torch_model)
-    train_env.close()
-    return module
-
-
-def tamp_row(out) -> dict:
-    from hrc_lab.tamp.algorithm2 import REASONING_FAILURES
-
-    per_object = list(out.object_planning_ms.values())
-    return {
-        "success": out.success,
-        "failure": out.failure,
-        "failure_kind": "" if not out.failure else ("reasoning" if out.failure in REASONING_FAILURES else "motion"),
-        "steps": out.steps,
-        "objects": len(out.object_steps),
-        "object_steps": float(np.mean(list(out.object_steps.values()))) if out.object_steps else np.nan,
-        "planning_ms_per_object": float(np.mean(per_object)) if per_object else np.nan,
-        "reasoning_ms": float(np.median([d.reasoning_ms for d in out.decisions])) if out.decisions else np.nan,
-        "decisions": " ".join(d.text().replace(" ", "_") for d in out.decisions),
-        "collision": out.collisions[0] if out.collisions else "",
-    }
-
-
-def tamp_trials(ctx: RunContext, reasoner, motion) -> pd.DataFrame:
-    from hrc_lab.tamp.algorithm2 import run_tamp
-
-    cells = {case: case_cell(ctx, case) for case in CASES}
-    rows = []
-    label = f"table 4.3 {ctx.cfg.env.cell} {ctx.cfg.tamp.name}"
-    for trial in tqdm(range(ctx.cfg.protocol.trials), desc=label, unit="trial"):
-        case = CASES[trial % 2]
-        out = run_tamp(cells[case], reasoner, motion)
-        rows.append({"trial": trial, "case": case, **tamp_row(out)})
-    for cell in cells.values():
-        cell.close()
-    return pd.DataFrame(rows)
-
-
-def tamp_videos(ctx: RunContext, reasoner, motion) -> list:
-    from hrc_lab.env.robot.recorder import FrameRecorder, save_video
-    from hrc_lab.tamp.algorithm2 import run_tamp
-
-    protocol, paths = ctx.cfg.protocol, []
-    for case in CASES:
-        cell = case_cell(ctx, case, **render_args(protocol))
-        recorder = FrameRecorder(cell, protocol.camera, protocol.video_width, protocol.video_height,
-                                 protocol.frame_skip)
-        out = run_tamp(recorder, reasoner, motion, on_decision=lambda d, r=recorder: setattr(r, "text", d.text()))
-        recorder.text = "packed" if out.success else f"failed: {out.failure}"
-        recorder.frames.append(recorder.frame())
-        name = f"{ctx.cfg.tamp.name}_{ctx.cfg.env.cell}_case{case}.mp4"
-        paths += save_video(recorder.frames, ctx.output_dir / name, cell.control_freq / protocol.frame_skip)
-        cell.close()
-    return paths
-
-
-# --- DRL ------------------------------------------------------------------------------------------------------------
-
-
-DRL_AGENT_DIR = "agent"
-
-
-def train_drl(ctx: RunContext):
-    """DDPG + HER: ``protocol.drl_demos`` scripted-expert episodes (either case) into its demonstration buffer,
-    then ``protocol.drl_iterations`` cycles of training (:mod:`hrc_lab.rl.trainer`: the thesis' iterations read as
-    the HER reference implementation's cycles), CASE 1 or 2 drawn per episode, on ``rl.n_envs`` envs; per epoch
-    the training rates, the throughput and ``protocol.drl_eval_episodes`` evaluation episodes go to MLflow, the
-    agent to the artifacts (every ``checkpoint_every`` epochs too, from which a killed run resumes)."""
-    from hrc_lab.rl import RLS, trainer
-    from hrc_lab.rl.agent import AGENT_FILE, DEMO_BUFFER_FILE, add_demonstrations, evaluate, load_agent, save_agent
-    from hrc_lab.rl.goal_env import make_goal_env
-
-    protocol, rl = ctx.cfg.protocol, ctx.cfg.rl
-    envs = trainer.training_envs(trainer.goal_env_factory(ctx.cfg.env, rl, ctx.seed, cases=CASES), rl.n_envs)
-    saved = ctx.tracker.resume_checkpoint(f"{DRL_AGENT_DIR}/{AGENT_FILE}") if ctx.cfg.resume_from else None
-    if saved is not None:
-        ctx.tracker.resume_checkpoint(f"{DRL_AGENT_DIR}/{DEMO_BUFFER_FILE}")
-        agent = load_agent(saved.parent, envs)
-    else:
-        agent = RLS.build(rl, env=envs, seed=ctx.seed)
-        if protocol.drl_demos:
-            demo_env = make_goal_env(ctx.cfg.env, rl, seed=5000 + ctx.seed, cases=CASES)  # not the test scenes
-            ctx.tracker.log_metrics({"demo_success_rate": add_demonstrations(agent, demo_env, protocol.drl_demos)})
-            demo_env.close()
-    test = make_goal_env(ctx.cfg.env, rl, seed=9000 + ctx.seed, cases=CASES)  # held out from the trials' scenes
-
-    def save(agent) -> None:
-        save_agent(agent, ctx.output_dir / DRL_AGENT_DIR, replay_buffer=False)
-        ctx.tracker.log_artifact(ctx.output_dir / DRL_AGENT_DIR, DRL_AGENT_DIR)
-
-    epochs = -(-protocol.drl_iterations // rl.cycles_per_epoch)
-    start = time.perf_counter()
-    trainer.train_epochs(
-        agent, rl, epochs,
-        evaluate=(lambda agent, epoch: evaluate(agent, test, protocol.drl_eval_episodes, seed=1000 * epoch))
-        if protocol.drl_eval_episodes else None,
-        log=ctx.tracker.log_metrics, save=save, checkpoint_every=protocol.checkpoint_every,
-        desc=f"drl {ctx.cfg.env.cell}")
-    ctx.tracker.log_metrics({"drl_train_s": time.perf_counter() - start})
-    envs.close()
-    test.close()
-    return agent
-
-
-def drl_episode(agent, goal_env) -> dict:
-    """One deterministic episode from the goal env's next scene as a trial row: success at its end (Eq. 4.7, no
-    collision) and the steps per product until the order was first packed."""
-    from hrc_lab.rl.agent import run_episode
-
-    info, first = run_episode(agent, goal_env)
-    success = bool(info["is_success"])
-    n = goal_env.cell.spec.n_selected
-    return {"success": success, "failure": "" if success else ("collision" if info["collided"] else "goal"),
-            "failure_kind": "" if success else "motion", "steps": goal_env.elapsed_steps,
-            "objects": n if success else 0, "object_steps": first / n if success and first else np.nan,
-            "planning_ms_per_object": np.nan, "reasoning_ms": np.nan, "decisions": "",
-            "collision": info["collisions"][0] if info["collisions"] else ""}
-
-
-def drl_goal_env(ctx: RunContext, case: int, **render):
-    """The DRL agent's goal env on the run's test cell in CASE ``case`` (:func:`case_cell`'s config and seed)."""
-    from hrc_lab.rl.goal_env import make_goal_env
-
-    goal_env = make_goal_env(case_spec(ctx, case), ctx.cfg.rl, seed=1000 + ctx.seed, **render)
-    goal_env.cell.reseed(1000 + ctx.seed)  # its first scene is the first trial's, as for the other systems
-    return goal_env
-
-
-def drl_trials(ctx: RunContext, agent) -> pd.DataFrame:
-    envs = {case: drl_goal_env(ctx, case) for case in CASES}
-    rows = []
-    for trial in tqdm(range(ctx.cfg.protocol.trials), desc=f"table 4.3 {ctx.cfg.env.cell} drl", unit="trial"):
-        case = CASES[trial % 2]
-        rows.append({"trial": trial, "case": case, **drl_episode(agent, envs[case])})
-    for env in envs.values():
-        env.close()
-    return pd.DataFrame(rows)
-
-
-def drl_videos(ctx: RunContext, agent) -> list:
-    from hrc_lab.env.robot.recorder import FrameRecorder, save_video
-
-    protocol, paths = ctx.cfg.protocol, []
-    for case in CASES:
-        goal_env = drl_goal_env(ctx, case, **render_args(protocol))
-        cell = goal_env.cell
-        goal_env.cell = recorder = FrameRecorder(cell, protocol.camera, protocol.video_width, protocol.video_height,
-                                                 protocol.frame_skip)
-        recorder.text = "DRL: flat policy, no plan"
-        row = drl_episode(agent, goal_env)
-        recorder.text = "packed" if row["success"] else f"failed: {row['failure']}"
-        recorder.frames.append(recorder.frame())
-        name = f"drl_{ctx.cfg.env.cell}_case{case}.mp4"
-        paths += save_video(recorder.frames, ctx.output_dir / name, cell.control_freq / protocol.frame_skip)
-        cell.close()
-    return paths
-
-
-# --- the protocol ---------------------------------------------------------------------------------------------------
+from hrc_lab.tamp import TAMPS
+from hrc_lab.tamp.systems import CASES
 
 
 def summarise(trials: pd.DataFrame, control_freq: float) -> dict[str, float]:
@@ -262,20 +49,15 @@ def summarise(trials: pd.DataFrame, control_freq: float) -> dict[str, float]:
 
 
 def table_4_3(ctx: RunContext) -> dict[str, float]:
-    protocol, spec, system = ctx.cfg.protocol, ctx.cfg.env, ctx.cfg.tamp.name
-    if system == "drl":
-        agent = train_drl(ctx)
-        trials = drl_trials(ctx, agent)
-        videos = drl_videos(ctx, agent) if spec.cell in protocol.video_cells else []
-    else:
-        reasoner = train_reasoner(ctx)
-        motion = build_motion(ctx)
-        trials = tamp_trials(ctx, reasoner, motion)
-        videos = tamp_videos(ctx, reasoner, motion) if spec.cell in protocol.video_cells else []
+    protocol, spec = ctx.cfg.protocol, ctx.cfg.env
+    system = TAMPS.build(ctx.cfg.tamp)
+    system.train(ctx)
+    trials = system.trials(ctx)
+    videos = system.videos(ctx) if spec.cell in protocol.video_cells else []
     for path in videos:
         ctx.tracker.log_artifact(path, "videos")
     ctx.tracker.log_table(trials, "trials")
     metrics = summarise(trials, spec.sim.control_freq)
-    ctx.tracker.log_table(pd.DataFrame([{"method": system, "seed": ctx.seed, "cell": spec.cell, **metrics}]),
+    ctx.tracker.log_table(pd.DataFrame([{"method": system.name, "seed": ctx.seed, "cell": spec.cell, **metrics}]),
                           "table_4_3")
     return metrics

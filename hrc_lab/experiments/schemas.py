@@ -12,6 +12,9 @@ from dataclasses import dataclass, field
 from hrc_lab.env.fetch import FETCH_ENV_IDS
 from hrc_lab.env.robot.settings import CELL_CAMERA
 from hrc_lab.motion.configs import PLANNER_INPUTS, STAGE_LABELS, STAGE_STARTS
+from hrc_lab.reasoning.configs import CH4 as REASONING_CH4
+from hrc_lab.reasoning.configs import CH5 as REASONING_CH5
+from hrc_lab.reasoning.configs import REASONERS
 from hrc_lab.registry import Registry
 
 PROTOCOLS = Registry("protocol")
@@ -648,7 +651,9 @@ PROTOCOLS.register("ch6_table_6_2_robot", Table62RobotProtocol, f"{CH6}:table_6_
 
 
 # The env and modules each protocol runs with (names of conf/<group>/*.yaml); a group not listed must be "none".
-CH4_REASONERS = ("ours", "ours_all_earlier", "ours_node_scores", "gnn", "gnn_task", "mlp", "rf")
+# The reasoning methods of a family are those registered with it (hrc_lab/reasoning/configs.py).
+CH4_REASONERS = REASONERS.family(REASONING_CH4)
+CH5_PLANNERS = REASONERS.family(REASONING_CH5)
 MOTION_PLANNERS = ("tc_vi", "tc_vi_indexed", "vi", "mlp", "gpr")
 ACTION_DETECTORS = ("hand_lstm_fcn", "cnn_lstm", "hand_cnn", "cnn_lstm_video")
 GRASP_SOLVERS = ("gnn_att", "gnn_att_oracle", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att", "gvmrn_rf")
@@ -668,14 +673,14 @@ ACCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
     "ch3_fig_3_13": {"env": ("error_correction",), "motion": MOTION_PLANNERS, "rl": GUIDED_RL},
     "ch3_fig_3_12": {"env": ("error_correction",), "motion": MOTION_PLANNERS, "rl": GUIDED_RL},
     "ch3_fig_3_9": {"env": ("error_correction",), "motion": MOTION_PLANNERS, "rl": ("ddpg_her_guided",)},
-    "ch5_fig_5_7": {"env": ("assemble_to_order",), "reasoning": ("semantic_planner",)},
-    "ch5_table_5_2_planner": {"env": ("assemble_to_order",), "reasoning": ("semantic_planner",)},
+    "ch5_fig_5_7": {"env": ("assemble_to_order",), "reasoning": CH5_PLANNERS},
+    "ch5_table_5_2_planner": {"env": ("assemble_to_order",), "reasoning": CH5_PLANNERS},
     "ch5_fig_5_6": {"env": ("assemble_to_order",), "perception": ACTION_DETECTORS},
-    "ch5_table_5_2": {"env": ("assemble_to_order",), "reasoning": ("semantic_planner",),
+    "ch5_table_5_2": {"env": ("assemble_to_order",), "reasoning": CH5_PLANNERS,
                       "perception": ACTION_DETECTORS},
-    "ch5_annotate": {"env": ("assemble_to_order",), "reasoning": ("semantic_planner",),
+    "ch5_annotate": {"env": ("assemble_to_order",), "reasoning": CH5_PLANNERS,
                      "perception": ACTION_DETECTORS},
-    "ch5_hrc_session": {"env": ("assemble_to_order",), "reasoning": ("semantic_planner",),
+    "ch5_hrc_session": {"env": ("assemble_to_order",), "reasoning": CH5_PLANNERS,
                         "perception": ACTION_DETECTORS},
     "collect": {"env": ROBOT_CELLS},
     "render_demo": {"env": ROBOT_CELLS},

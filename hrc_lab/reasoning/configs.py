@@ -1,4 +1,12 @@
-"""Config schemas of the reasoning methods (light: no torch import), and their registry."""
+"""Config schemas of the reasoning methods (light: no torch import), and their registry.
+
+Every method is registered once, next to its schema, with its implementation, its family (the protocols it is a
+row of: :data:`CH4`, Ch.4's package-to-order reasoners of Tables 4.1 and 4.3, Fig. 4.7 and 4.4.5; :data:`CH5`,
+Ch.5's assembly planner) and its display name in reports; a variant of a method names the method it varies
+(``variant_of``). The protocols' accepted names (:data:`hrc_lab.experiments.schemas.ACCEPTS`) and the reports' rows
+and labels (:mod:`hrc_lab.report.ch4_reasoning`) are read from here, so a new method is added in this file alone
+(and its ``conf/reasoning/<name>.yaml``).
+"""
 
 from __future__ import annotations
 
@@ -6,7 +14,49 @@ from dataclasses import dataclass
 
 from hrc_lab.registry import Registry
 
-REASONERS = Registry("reasoning")
+CH4 = "ch4"  # package-to-order reasoning (Table 4.1, Fig. 4.7, the practical scenarios, Table 4.3)
+CH5 = "ch5"  # assembly-to-order planning (Fig. 5.7, Table 5.2)
+
+
+@dataclass(frozen=True)
+class Method:
+    """What reports and protocols know of a registered reasoning method besides its schema and implementation."""
+
+    family: str
+    label: str  # its row's name in reports
+    variant_of: str | None = None  # the method it is an ablation or variant of (a dashed line beside it)
+
+
+class ReasonerRegistry(Registry):
+    """The ``reasoning`` registry: :meth:`Registry.register` plus each method's :class:`Method`."""
+
+    def __init__(self, group: str) -> None:
+        super().__init__(group)
+        self._methods: dict[str, Method] = {}
+
+    def register(self, name: str, schema: type, target: str | None = None, *, family: str, label: str,
+                 variant_of: str | None = None) -> None:
+        super().register(name, schema, target)
+        self._methods[name] = Method(family, label, variant_of)
+
+    def method(self, name: str) -> Method:
+        self.get(name)  # an unknown name is a ConfigError naming the choices
+        return self._methods[name]
+
+    def family(self, family: str) -> tuple[str, ...]:
+        """The methods of ``family`` in the order they are registered (the order of the reports' rows)."""
+        return tuple(name for name, method in self._methods.items() if method.family == family)
+
+    def labels(self, family: str) -> dict[str, str]:
+        """Method name -> display name, for the methods of ``family``."""
+        return {name: self._methods[name].label for name in self.family(family)}
+
+    def with_variants(self, name: str) -> tuple[str, ...]:
+        """``name`` and the methods registered as its variants, in the order they are registered."""
+        return (name, *(other for other, method in self._methods.items() if method.variant_of == name))
+
+
+REASONERS = ReasonerRegistry("reasoning")
 
 # How positions enter the package-to-order encodings (``reasoning.position_frame``; hrc_lab/reasoning/encoding.py):
 # (origin, scale). "table_dm": relative to the centre of the table top, in decimetres, so that features are O(1)
@@ -101,14 +151,19 @@ class RandomForestConfig:
             raise ValueError(f"reasoning.max_depth must be >= 1 or null, got {self.max_depth}")
 
 
-REASONERS.register("ours", ChainSAGEConfig, "hrc_lab.reasoning.chain_sage:ChainSAGEReasoner")
+CHAIN_SAGE = "hrc_lab.reasoning.chain_sage:ChainSAGEReasoner"
+OBJECT_GOAL_GNN = "hrc_lab.reasoning.object_goal_gnn:ObjectGoalGNNReasoner"
+REASONERS.register("ours", ChainSAGEConfig, CHAIN_SAGE, family=CH4, label="Ours")
 # Issue 24's variants of ours, each a row of its own beside the thesis' (conf/reasoning/<name>.yaml sets the keys)
-REASONERS.register("ours_all_earlier", ChainSAGEConfig, "hrc_lab.reasoning.chain_sage:ChainSAGEReasoner")
-REASONERS.register("ours_node_scores", ChainSAGEConfig, "hrc_lab.reasoning.chain_sage:ChainSAGEReasoner")
-REASONERS.register("gnn", ObjectGoalGNNConfig, "hrc_lab.reasoning.object_goal_gnn:ObjectGoalGNNReasoner")
-REASONERS.register("gnn_task", ObjectGoalGNNConfig, "hrc_lab.reasoning.object_goal_gnn:ObjectGoalGNNReasoner")
-REASONERS.register("mlp", FlatMLPConfig, "hrc_lab.reasoning.flat_mlp:FlatMLPReasoner")
-REASONERS.register("rf", RandomForestConfig, "hrc_lab.reasoning.random_forest:RandomForestReasoner")
+REASONERS.register("ours_all_earlier", ChainSAGEConfig, CHAIN_SAGE, family=CH4, label="Ours, all-earlier edges",
+                   variant_of="ours")
+REASONERS.register("ours_node_scores", ChainSAGEConfig, CHAIN_SAGE, family=CH4,
+                   label="Ours + node scores (hrc_lab)", variant_of="ours")
+REASONERS.register("gnn", ObjectGoalGNNConfig, OBJECT_GOAL_GNN, family=CH4, label="GNN [74]")
+REASONERS.register("gnn_task", ObjectGoalGNNConfig, OBJECT_GOAL_GNN, family=CH4, label="GNN-task")
+REASONERS.register("mlp", FlatMLPConfig, "hrc_lab.reasoning.flat_mlp:FlatMLPReasoner", family=CH4, label="MLP")
+REASONERS.register("rf", RandomForestConfig, "hrc_lab.reasoning.random_forest:RandomForestReasoner", family=CH4,
+                   label="RF")
 
 
 @dataclass
@@ -125,4 +180,5 @@ class SemanticPlannerConfig(TorchReasonerConfig):
     lstm_hidden: int = 64
 
 
-REASONERS.register("semantic_planner", SemanticPlannerConfig, "hrc_lab.reasoning.semantic_planner:SemanticPlanner")
+REASONERS.register("semantic_planner", SemanticPlannerConfig, "hrc_lab.reasoning.semantic_planner:SemanticPlanner",
+                   family=CH5, label="Graph semantic planner")

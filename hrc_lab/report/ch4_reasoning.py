@@ -9,7 +9,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.reasoning.configs import DEFAULT_POSITION_FRAME, POSITION_FRAMES  # noqa: E402
+from hrc_lab.reasoning.configs import CH4, DEFAULT_POSITION_FRAME, POSITION_FRAMES, REASONERS  # noqa: E402
 from hrc_lab.report.ch4_conditions import conditions_paragraph  # noqa: E402
 from hrc_lab.report.plots import success_bars  # noqa: E402
 from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, over_seeds, setting  # noqa: E402
@@ -25,11 +25,11 @@ from hrc_lab.report.thesis import (  # noqa: E402
 )
 
 CELLS = ["2of3", "3of3", "3of5", "4of5"]
-METHODS = ["ours", "ours_all_earlier", "ours_node_scores", "gnn", "gnn_task", "mlp", "rf"]
-LABELS = {"ours": "Ours", "ours_all_earlier": "Ours, all-earlier edges",
-          "ours_node_scores": "Ours + node scores (hrc_lab)", "gnn": "GNN [74]", "gnn_task": "GNN-task", "mlp": "MLP",
-          "rf": "RF"}
-OURS_FAMILY = ["ours", "ours_all_earlier", "ours_node_scores"]  # the thesis' module and issue 24's variants of it
+# The methods' rows (in the order they are registered), display names and variants: their registration in
+# hrc_lab/reasoning/configs.py
+METHODS = list(REASONERS.family(CH4))
+LABELS = REASONERS.labels(CH4)
+OURS_FAMILY = list(REASONERS.with_variants("ours"))  # the thesis' module and issue 24's variants of it
 
 
 @register_section("table_4_1")

@@ -3,7 +3,8 @@
 A ``conf/tamp/<name>.yaml`` is a preset: its defaults list sets the reasoning, motion and rl groups the system is
 made of, and command-line group choices still win (``tamp=ours reasoning=gnn`` runs Algorithm 2 with the GNN
 baseline as the reasoning module). The protocol checks that the groups make the named system
-(:class:`hrc_lab.experiments.schemas.Table43Protocol`).
+(:class:`hrc_lab.experiments.schemas.Table43Protocol`). ``TAMPS.build(cfg)`` makes the system
+(:mod:`hrc_lab.tamp.systems`), which trains its modules and runs the protocol's trials and videos.
 """
 
 from __future__ import annotations
@@ -20,7 +21,9 @@ class TampConfig:
     """A system of Table 4.3; nothing to set beyond its ``name`` (its modules are the other groups)."""
 
 
+SYSTEMS = "hrc_lab.tamp.systems"
 # Ours: reasoning module + two-level motion module (Algorithm 2); RM+RRT-Connect: the same reasoning module, the
 # motion module replaced by OMPL's RRT-Connect ([138], [139]); DRL: one flat DDPG + HER agent, no reasoning module.
-for _name in ("ours", "rm_rrt_connect", "drl"):
-    TAMPS.register(_name, TampConfig)
+TAMPS.register("ours", TampConfig, f"{SYSTEMS}:OursSystem")
+TAMPS.register("rm_rrt_connect", TampConfig, f"{SYSTEMS}:RMRRTConnectSystem")
+TAMPS.register("drl", TampConfig, f"{SYSTEMS}:DRLSystem")
