@@ -11,6 +11,7 @@ from hrc_lab.env import ENVS
 from hrc_lab.experiments.context import RunContext
 from hrc_lab.motion.demonstrations import correction_demos
 from hrc_lab.motion.training import train_two_level
+from hrc_lab.seeds import TEST_SCENES, scene_seed
 
 COLOURS = {1: "blue", 2: "red"}
 
@@ -26,7 +27,7 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
     classifier, planner, ndp = train_two_level(ctx.cfg.motion, env, demos, protocol.stage_starts,
                                                protocol.subgoals_per_stage, ctx.trainer, ctx.seed,
                                                protocol.planner_input)
-    test = ENVS.build(config, seed=1000 + ctx.seed)
+    test = ENVS.build(config, seed=scene_seed(ctx.seed, TEST_SCENES))
     rows, stage_rows = [], []
     for trial in tqdm(range(protocol.trials), desc=f"table 3.1 {config.cell}", unit="trial"):
         out, final = run_correction(test, planner, ndp, classifier, protocol.subgoals_per_stage,

@@ -26,6 +26,7 @@ import pandas as pd
 
 from hrc_lab.env import ENVS
 from hrc_lab.experiments.context import RunContext
+from hrc_lab.seeds import EXPERT_DEMO_SCENES, scene_seed
 
 AGENTS_DIR = "agents"
 
@@ -109,7 +110,7 @@ def add_expert_demos(ctx: RunContext, agent, subtask: int) -> None:
     from hrc_lab.rl.agent import add_demonstrations
     from hrc_lab.rl.goal_env import make_goal_env
 
-    env = make_goal_env(ctx.cfg.env, ctx.cfg.rl, seed=20_000 + ctx.seed, subtask=subtask)
+    env = make_goal_env(ctx.cfg.env, ctx.cfg.rl, seed=scene_seed(ctx.seed, EXPERT_DEMO_SCENES), subtask=subtask)
     success = add_demonstrations(agent, env, ctx.cfg.protocol.expert_demos)
     ctx.tracker.log_metrics({f"expert_demo_success_rate_subtask{subtask}": success})
     env.close()

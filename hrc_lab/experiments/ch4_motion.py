@@ -17,6 +17,7 @@ from hrc_lab.experiments.context import RunContext
 from hrc_lab.motion import MOTIONS
 from hrc_lab.motion.demonstrations import collect_demos, fixed_goal_configurations
 from hrc_lab.motion.training import train_motion_module
+from hrc_lab.seeds import TEST_SCENES, scene_seed
 
 
 def cross_validated_r2(ctx: RunContext, pairs, folds: int) -> float:
@@ -53,8 +54,8 @@ def table_4_2(ctx: RunContext) -> dict[str, float]:
                                  protocol.tolerance, ctx.trainer, ctx.seed, ctx.tracker.log_torch_model)
 
     # tests: every goal configuration (permutations unseen in training), CASE 1 and CASE 2 alternating
-    test_envs = [ENVS.build(ENVS.derive(spec, sim=dataclasses.replace(spec.sim, case=c)), seed=1000 + ctx.seed)
-                 for c in (1, 2)]
+    test_envs = [ENVS.build(ENVS.derive(spec, sim=dataclasses.replace(spec.sim, case=c)),
+                            seed=scene_seed(ctx.seed, TEST_SCENES)) for c in (1, 2)]
     rows = []
     for trial in tqdm(range(protocol.trials), desc=f"table 4.2 {spec.cell} {motion.name}", unit="trial"):
         env = test_envs[trial % 2]

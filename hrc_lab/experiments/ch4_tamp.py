@@ -11,10 +11,11 @@ and renders its videos:
 - ``tamp=drl``: one DDPG + HER agent (:mod:`hrc_lab.rl`) trained on CASE 1 and CASE 2, then its deterministic
   policy; a trial succeeds if the order is packed (Eq. 4.7) with no collision when its episode ends.
 
-Every system is tested on the same ``protocol.trials`` scenes (cells seeded ``1000 + seed``; trials alternate CASE 1
-and CASE 2). Per object: planning time (reasoning decisions + motion planning, wall clock, batch 1), control steps
-and simulated execution time (steps / env.sim.control_freq). Failure reasons as in :mod:`hrc_lab.tamp.algorithm2`;
-DRL's are ``collision`` or ``goal`` (the order was not packed when the episode ended).
+Every system is tested on the same ``protocol.trials`` scenes (cells seeded with :mod:`hrc_lab.seeds`' test scenes;
+trials alternate CASE 1 and CASE 2). Per object: planning time (reasoning decisions + motion planning, wall clock,
+batch 1), control steps and simulated execution time (steps / env.sim.control_freq). Failure reasons as in
+:mod:`hrc_lab.tamp.algorithm2`; DRL's are ``collision`` or ``goal`` (the order was not packed when the episode
+ended).
 """
 
 from __future__ import annotations

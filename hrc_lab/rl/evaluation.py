@@ -6,12 +6,14 @@ from __future__ import annotations
 
 from typing import Any
 
+from hrc_lab.seeds import RL_EVAL_SCENES, scene_seed
+
 
 def evaluation_env(env_cfg: Any, rl_cfg: Any, seed: int, subtask: int):
     """The held-out scenes a run's agent of ``subtask`` is evaluated on (its own seed stream, apart from training)."""
     from hrc_lab.rl.goal_env import make_goal_env
 
-    return make_goal_env(env_cfg, rl_cfg, seed=10_000 + seed, subtask=subtask)
+    return make_goal_env(env_cfg, rl_cfg, seed=scene_seed(seed, RL_EVAL_SCENES), subtask=subtask)
 
 
 def evaluation_seed(epoch: int) -> int:

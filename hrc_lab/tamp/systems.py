@@ -3,7 +3,7 @@
 
 - ``train(ctx)``: learn (or build) the system's modules for the run;
 - ``trials(ctx)``: one row per trial on the run's test scenes (``protocol.trials`` of them, cells seeded
-  ``1000 + seed``, CASE 1 and CASE 2 alternating), the same scenes for every system;
+  :data:`hrc_lab.seeds.TEST_SCENES`, CASE 1 and CASE 2 alternating), the same scenes for every system;
 - ``videos(ctx)``: one rendered CASE 1 and one CASE 2 trial with what the system does written on the frames.
 
 The systems: :class:`OursSystem` (Algorithm 2 with the reasoning module of Table 4.1 and the two-level motion module
@@ -23,6 +23,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from hrc_lab.env import ENVS
+from hrc_lab.seeds import DRL_DEMO_SCENES, DRL_EVAL_SCENES, TEST_SCENES, scene_seed
 
 if TYPE_CHECKING:
     from hrc_lab.experiments.context import RunContext
@@ -38,7 +39,7 @@ def case_spec(ctx: RunContext, case: int):
 
 def case_cell(ctx: RunContext, case: int, **render):
     """The run's cell in CASE ``case``, seeded like every system's test cells."""
-    return ENVS.build(case_spec(ctx, case), seed=1000 + ctx.seed, **render)
+    return ENVS.build(case_spec(ctx, case), seed=scene_seed(ctx.seed, TEST_SCENES), **render)
 
 
 def render_args(protocol) -> dict:
@@ -211,10 +212,12 @@ class DRLSystem(TampSystem):
         else:
             agent = RLS.build(rl, env=envs, seed=ctx.seed)
             if protocol.drl_demos:
-                demo_env = make_goal_env(ctx.cfg.env, rl, seed=5000 + ctx.seed, cases=CASES)  # not the test scenes
+                demo_env = make_goal_env(ctx.cfg.env, rl, seed=scene_seed(ctx.seed, DRL_DEMO_SCENES),
+                                         cases=CASES)  # not the test scenes
                 ctx.tracker.log_metrics({"demo_success_rate": add_demonstrations(agent, demo_env, protocol.drl_demos)})
                 demo_env.close()
-        test = make_goal_env(ctx.cfg.env, rl, seed=9000 + ctx.seed, cases=CASES)  # held out from the trials' scenes
+        test = make_goal_env(ctx.cfg.env, rl, seed=scene_seed(ctx.seed, DRL_EVAL_SCENES),
+                             cases=CASES)  # held out from the trials' scenes
 
         def save(agent) -> None:
             save_agent(agent, ctx.output_dir / DRL_AGENT_DIR, replay_buffer=False)
@@ -281,6 +284,7 @@ def drl_goal_env(ctx: RunContext, case: int, **render):
     """The DRL agent's goal env on the run's test cell in CASE ``case`` (:func:`case_cell`'s config and seed)."""
     from hrc_lab.rl.goal_env import make_goal_env
 
-    goal_env = make_goal_env(case_spec(ctx, case), ctx.cfg.rl, seed=1000 + ctx.seed, **render)
-    goal_env.cell.reseed(1000 + ctx.seed)  # its first scene is the first trial's, as for the other systems
+    goal_env = make_goal_env(case_spec(ctx, case), ctx.cfg.rl, seed=scene_seed(ctx.seed, TEST_SCENES), **render)
+    # its first scene is the first trial's, as for the other systems
+    goal_env.cell.reseed(scene_seed(ctx.seed, TEST_SCENES))
     return goal_env
