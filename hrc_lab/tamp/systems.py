@@ -59,6 +59,24 @@ class TampSystem:
         raise NotImplementedError
 
     def trials(self, ctx: RunContext) -> pd.DataFrame:
+        """``protocol.trials`` rows, trial k in CASE 1 for even k and CASE 2 for odd k, on one test env per case
+        (:meth:`trial_env`), each trial the env's next scene (:meth:`trial`)."""
+        envs = {case: self.trial_env(ctx, case) for case in CASES}
+        rows = []
+        label = f"table 4.3 {ctx.cfg.env.cell} {self.name}"
+        for trial in tqdm(range(ctx.cfg.protocol.trials), desc=label, unit="trial"):
+            case = CASES[trial % 2]
+            rows.append({"trial": trial, "case": case, **self.trial(envs[case])})
+        for env in envs.values():
+            env.close()
+        return pd.DataFrame(rows)
+
+    def trial_env(self, ctx: RunContext, case: int):
+        """The env the trials of CASE ``case`` run in (seeded like every system's)."""
+        raise NotImplementedError
+
+    def trial(self, env) -> dict:
+        """One trial from ``env``'s next scene as a row of the trials table."""
         raise NotImplementedError
 
     def videos(self, ctx: RunContext) -> list:
@@ -99,19 +117,13 @@ class Algorithm2System(TampSystem):
         """The motion module that executes the reasoning module's decisions (``run_stage``)."""
         raise NotImplementedError
 
-    def trials(self, ctx: RunContext) -> pd.DataFrame:
+    def trial_env(self, ctx: RunContext, case: int):
+        return case_cell(ctx, case)
+
+    def trial(self, env) -> dict:
         from hrc_lab.tamp.algorithm2 import run_tamp
 
-        cells = {case: case_cell(ctx, case) for case in CASES}
-        rows = []
-        label = f"table 4.3 {ctx.cfg.env.cell} {self.name}"
-        for trial in tqdm(range(ctx.cfg.protocol.trials), desc=label, unit="trial"):
-            case = CASES[trial % 2]
-            out = run_tamp(cells[case], self.reasoner, self.motion)
-            rows.append({"trial": trial, "case": case, **tamp_row(out)})
-        for cell in cells.values():
-            cell.close()
-        return pd.DataFrame(rows)
+        return tamp_row(run_tamp(env, self.reasoner, self.motion))
 
     def videos(self, ctx: RunContext) -> list:
         from hrc_lab.env.robot.recorder import FrameRecorder, save_video
@@ -236,15 +248,11 @@ class DRLSystem(TampSystem):
         test.close()
         self.agent = agent
 
-    def trials(self, ctx: RunContext) -> pd.DataFrame:
-        envs = {case: drl_goal_env(ctx, case) for case in CASES}
-        rows = []
-        for trial in tqdm(range(ctx.cfg.protocol.trials), desc=f"table 4.3 {ctx.cfg.env.cell} drl", unit="trial"):
-            case = CASES[trial % 2]
-            rows.append({"trial": trial, "case": case, **drl_episode(self.agent, envs[case])})
-        for env in envs.values():
-            env.close()
-        return pd.DataFrame(rows)
+    def trial_env(self, ctx: RunContext, case: int):
+        return drl_goal_env(ctx, case)
+
+    def trial(self, env) -> dict:
+        return drl_episode(self.agent, env)
 
     def videos(self, ctx: RunContext) -> list:
         from hrc_lab.env.robot.recorder import FrameRecorder, save_video
