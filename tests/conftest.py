@@ -31,7 +31,7 @@ def migrated_sqlite_template(tmp_path_factory):
     """Every sqlite MLflow store a test opens in this process starts as a copy of one empty, migrated store instead
     of running MLflow's schema migrations again (3-5 s per store on 2 cores, about a third of the suite's time when
     each test made its own). The stores are the same: the copy is what the migrations write. Returns the template's
-    path, for stores a test's subprocess will open (:func:`sqlite_store`)."""
+    path, to copy where a test's subprocess will open a store (tests/test_sweeps.py)."""
     import mlflow.store.db.utils as db_utils
     import mlflow.store.model_registry.sqlalchemy_store as registry_store
     from mlflow.tracking import MlflowClient
@@ -52,19 +52,6 @@ def migrated_sqlite_template(tmp_path_factory):
     patch.setattr(registry_store, "_initialize_tables", initialize)
     yield template
     patch.undo()
-
-
-@pytest.fixture
-def sqlite_store(migrated_sqlite_template):
-    """sqlite_store(path) -> the tracking URI of a new, migrated sqlite store at ``path``, for a console script run
-    as a subprocess (which does not share this process' shortcut)."""
-
-    def _store(path: Path) -> str:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(migrated_sqlite_template, path)
-        return f"sqlite:///{path}"
-
-    return _store
 
 
 @pytest.fixture

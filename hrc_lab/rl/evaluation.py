@@ -1,4 +1,5 @@
-"""The held-out scenes a Ch.3 agent is evaluated on after every epoch (Fig. 3.12 / 3.13, :mod:`~hrc_lab.rl.trainer`):
+"""The held-out scenes a Ch.3 agent is evaluated on after every epoch (Fig. 3.12 / 3.13, :mod:`~hrc_lab.rl.trainer`;
+Table 4.3's DRL draws its epochs' scenes by :func:`evaluation_seed` too):
 their own seed stream, apart from the training and demonstration scenes, so that a saved agent's evaluation can be
 replayed scene for scene (``scripts/rl_final_policies.py``)."""
 

@@ -213,6 +213,7 @@ class DRLSystem(TampSystem):
         agent to the artifacts (every ``checkpoint_every`` epochs too, from which a killed run resumes)."""
         from hrc_lab.rl import RLS, trainer
         from hrc_lab.rl.agent import AGENT_FILE, DEMO_BUFFER_FILE, add_demonstrations, evaluate, load_agent, save_agent
+        from hrc_lab.rl.evaluation import evaluation_seed
         from hrc_lab.rl.goal_env import make_goal_env
 
         protocol, rl = ctx.cfg.protocol, ctx.cfg.rl
@@ -239,7 +240,8 @@ class DRLSystem(TampSystem):
         start = time.perf_counter()
         trainer.train_epochs(
             agent, rl, epochs,
-            evaluate=(lambda agent, epoch: evaluate(agent, test, protocol.drl_eval_episodes, seed=1000 * epoch))
+            evaluate=(lambda agent, epoch: evaluate(agent, test, protocol.drl_eval_episodes,
+                                                    seed=evaluation_seed(epoch)))
             if protocol.drl_eval_episodes else None,
             log=ctx.tracker.log_metrics, save=save, checkpoint_every=protocol.checkpoint_every,
             desc=f"drl {ctx.cfg.env.cell}")
