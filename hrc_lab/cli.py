@@ -80,7 +80,7 @@ def _run(cfg: DictConfig) -> dict[str, float]:
     import torch
 
     from hrc_lab.experiments import PROTOCOLS
-    from hrc_lab.experiments.context import RunContext
+    from hrc_lab.run_context import RunContext
     from hrc_lab.search import trial_tags
 
     torch.set_num_threads(cfg.num_threads)

@@ -1,7 +1,7 @@
 """The one seed convention of a job: everything random derives from the config's ``seed``, through a named stream.
 
 - numpy draws: a generator per purpose, ``numpy.random.default_rng([seed, stream])``
-  (:meth:`hrc_lab.experiments.context.RunContext.rng`, the stream an int the protocol names);
+  (:meth:`hrc_lab.run_context.RunContext.rng`, the stream an int the protocol names);
 - a simulator's scenes (robot cells and goal envs reseed from an int): :func:`scene_seed`, the job's seed plus the
   offset of the scenes' purpose below. The offsets lie 1000 or more apart, so for seeds below 1000 no two purposes
   share a scene.

@@ -8,9 +8,9 @@ import pandas as pd
 from tqdm import tqdm
 
 from hrc_lab.env import ENVS
-from hrc_lab.experiments.context import RunContext
 from hrc_lab.motion.demonstrations import correction_demos
 from hrc_lab.motion.training import train_two_level
+from hrc_lab.run_context import RunContext
 from hrc_lab.seeds import TEST_SCENES, scene_seed
 
 COLOURS = {1: "blue", 2: "red"}

@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from hrc_lab.env import ENVS
-from hrc_lab.experiments.context import RunContext
+from hrc_lab.run_context import RunContext
 from hrc_lab.seeds import EXPERT_DEMO_SCENES, scene_seed
 
 AGENTS_DIR = "agents"

@@ -13,10 +13,10 @@ from tqdm import tqdm
 
 from hrc_lab.env import ENVS
 from hrc_lab.env.robot.spec import goal_configurations, position_ranges, sample_episode
-from hrc_lab.experiments.context import RunContext
 from hrc_lab.motion import MOTIONS
 from hrc_lab.motion.demonstrations import collect_demos, fixed_goal_configurations
 from hrc_lab.motion.training import train_motion_module
+from hrc_lab.run_context import RunContext
 from hrc_lab.seeds import TEST_SCENES, scene_seed
 
 

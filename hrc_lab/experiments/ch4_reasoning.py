@@ -25,11 +25,11 @@ from hrc_lab.env.robot.spec import (
     position_ranges,
     stage_observations,
 )
-from hrc_lab.experiments.context import RunContext
 from hrc_lab.reasoning import REASONERS
 from hrc_lab.reasoning.base import Reasoner
 from hrc_lab.reasoning.episodes import demo_repeats, episodes_for, observations_of, random_episodes
 from hrc_lab.reasoning.training import train
+from hrc_lab.run_context import RunContext
 
 # Data and scoring ------------------------------------------------------------------------------------------------
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from hrc_lab.experiments.context import RunContext
+from hrc_lab.run_context import RunContext
 from hrc_lab.tamp import TAMPS
 from hrc_lab.tamp.systems import CASES
 

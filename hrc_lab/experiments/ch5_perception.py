@@ -29,7 +29,6 @@ from tqdm import tqdm
 from hrc_lab.data.video_io import read_video, write_video
 from hrc_lab.env.assembly.spec import action_labels, scenarios
 from hrc_lab.env.assembly.video import Clip, render_action_clip, render_session
-from hrc_lab.experiments.context import RunContext
 from hrc_lab.perception.action_detector import ActionDetector, action_windows
 from hrc_lab.perception.dataset import ActionSet, action_set_key, cached_action_set, stored_sizes, stratified_split
 from hrc_lab.perception.detector_cache import load_or_train_action_detector, train_action_detector
@@ -40,6 +39,7 @@ from hrc_lab.perception.robot_cell import CellHands, SideBySide
 from hrc_lab.perception.sessions import run_session
 from hrc_lab.reasoning.hrc_loop import SemanticPlannerLoop
 from hrc_lab.reasoning.training import train_planner
+from hrc_lab.run_context import RunContext
 
 SPLIT, SESSIONS = 60, 61  # random streams
 log = logging.getLogger("hrc_lab")

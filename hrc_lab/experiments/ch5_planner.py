@@ -20,10 +20,10 @@ from hrc_lab.env.assembly.spec import (
     plan_tokens,
     scenarios,
 )
-from hrc_lab.experiments.context import RunContext
 from hrc_lab.reasoning.hrc_loop import SemanticPlannerLoop
 from hrc_lab.reasoning.semantic_planner import SemanticPlanner, score_plans
 from hrc_lab.reasoning.training import train_planner
+from hrc_lab.run_context import RunContext
 
 
 def evaluate_all(planner: SemanticPlanner, spec: AssembleToOrderSpec, tests: list[Scenario]) -> dict[str, float]:

@@ -20,7 +20,6 @@ from tqdm import tqdm
 from hrc_lab.cache import cache_key, cached
 from hrc_lab.env.clutter.rule import iterative_solution
 from hrc_lab.env.clutter.spec import PART_TYPES, ClutterScene, ClutterSpec
-from hrc_lab.experiments.context import RunContext
 from hrc_lab.grasp import GRASPS
 from hrc_lab.grasp.detection_metrics import detection_quality
 from hrc_lab.grasp.detector_cache import detector_cache_key, load_or_train_detector
@@ -28,6 +27,7 @@ from hrc_lab.grasp.diagnostics import FAILURE_CAUSES, SceneGeometry, failure_cau
 from hrc_lab.grasp.iterative import IterativeAnswer, iterate
 from hrc_lab.grasp.observation import SceneNodes, scene_nodes
 from hrc_lab.grasp.solver import GraspSolver
+from hrc_lab.run_context import RunContext
 
 TRAIN, TEST, ITERATIVE = 1, 2, 3  # scene-seed streams
 

@@ -15,7 +15,7 @@ from tqdm import tqdm
 
 from hrc_lab.data.recording import record_episode
 from hrc_lab.env import ENVS
-from hrc_lab.experiments.context import RunContext
+from hrc_lab.run_context import RunContext
 
 
 def _env_args(ctx: RunContext, env) -> dict:

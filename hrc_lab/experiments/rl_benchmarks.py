@@ -14,7 +14,7 @@ buffer) is an artifact.
 
 from __future__ import annotations
 
-from hrc_lab.experiments.context import RunContext
+from hrc_lab.run_context import RunContext
 
 AGENT_DIR = "agents/fetch"
 

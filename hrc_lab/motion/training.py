@@ -2,7 +2,7 @@
 task classifier c(x), sub-goal planner and neural dynamic planner (3.2, as Table 3.1 and Algorithm 1's guide use
 them) and Ch.4's motion module (4.2.2; Table 4.2 and ours in Table 4.3).
 
-``trainer(prefix)`` gives each fit its Lightning Trainer (:meth:`hrc_lab.experiments.context.RunContext.trainer`:
+``trainer(prefix)`` gives each fit its Lightning Trainer (:meth:`hrc_lab.run_context.RunContext.trainer`:
 per-epoch metrics and checkpoints under ``prefix``); ``motion`` is the run's ``motion`` config."""
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Training a ``reasoning`` model of a run's config (``REASONERS.build``): Ch.4's reasoning module on the stage
 observations of task episodes (as Table 4.1; also Table 4.3's reasoning) and Ch.5's graph semantic planner on
 assembly scenarios (5.2.2; Fig. 5.7, Table 5.2). ``trainer(prefix)`` gives the fit its Lightning Trainer
-(:meth:`hrc_lab.experiments.context.RunContext.trainer`: per-epoch metrics and checkpoints under ``prefix``)."""
+(:meth:`hrc_lab.run_context.RunContext.trainer`: per-epoch metrics and checkpoints under ``prefix``)."""
 
 from __future__ import annotations
 

@@ -9,7 +9,7 @@
 The systems: :class:`OursSystem` (Algorithm 2 with the reasoning module of Table 4.1 and the two-level motion module
 of Table 4.2), :class:`RMRRTConnectSystem` (the same reasoning module with OMPL's RRT-Connect as the motion module),
 :class:`DRLSystem` (one DDPG + HER agent, no reasoning or motion module). ``ctx`` is the job's
-:class:`~hrc_lab.experiments.context.RunContext`.
+:class:`~hrc_lab.run_context.RunContext`.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from hrc_lab.env import ENVS
 from hrc_lab.seeds import DRL_DEMO_SCENES, DRL_EVAL_SCENES, TEST_SCENES, scene_seed
 
 if TYPE_CHECKING:
-    from hrc_lab.experiments.context import RunContext
+    from hrc_lab.run_context import RunContext
 
 CASES = (1, 2)
 
