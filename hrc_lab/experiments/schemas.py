@@ -16,6 +16,7 @@ from hrc_lab.reasoning.configs import CH4 as REASONING_CH4
 from hrc_lab.reasoning.configs import CH5 as REASONING_CH5
 from hrc_lab.reasoning.configs import REASONERS
 from hrc_lab.registry import Registry
+from hrc_lab.tamp.configs import SYSTEMS as TAMP_SYSTEMS
 
 PROTOCOLS = Registry("protocol")
 
@@ -667,7 +668,7 @@ ACCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
     "ch4_table_4_2": {"env": ("package_to_order",), "motion": MOTION_PLANNERS},
     "ch4_table_4_3": {"env": ("package_to_order",), "reasoning": (*CH4_REASONERS, "none"),
                       "motion": (*MOTION_PLANNERS, "rrt_connect", "none"), "rl": ("none", "ddpg_her"),
-                      "tamp": ("ours", "rm_rrt_connect", "drl")},
+                      "tamp": tuple(TAMP_SYSTEMS)},
     "ch3_table_3_1": {"env": ("error_correction",), "motion": MOTION_PLANNERS},
     "ch3_fig_3_10": {"env": ("error_correction",), "motion": MOTION_PLANNERS},
     "ch3_fig_3_13": {"env": ("error_correction",), "motion": MOTION_PLANNERS, "rl": GUIDED_RL},

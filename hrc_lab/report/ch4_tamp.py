@@ -9,10 +9,9 @@ from hrc_lab.report.plots import success_bars
 from hrc_lab.report.runs import amount, keyed, mean_std, over_seeds
 from hrc_lab.report.sections import Section, register_section
 from hrc_lab.report.thesis import fmt, thesis_cells, thesis_fmt, thesis_results, thesis_value
+from hrc_lab.tamp.configs import LABELS, SYSTEMS
 
 CELLS = ["2of3", "3of3", "3of5", "4of5"]
-SYSTEMS = ["ours", "drl", "rm_rrt_connect"]
-LABELS = {"ours": "Ours (Algorithm 2)", "drl": "DRL (DDPG + HER)", "rm_rrt_connect": "RM+RRT-Connect"}
 FAILURES = ("wrong_stage", "wrong_object", "wrong_slot", "pick", "placement", "collision", "horizon", "ik",
             "timeout", "stages", "goal")
 

@@ -21,9 +21,12 @@ class TampConfig:
     """A system of Table 4.3; nothing to set beyond its ``name`` (its modules are the other groups)."""
 
 
-SYSTEMS = "hrc_lab.tamp.systems"
-# Ours: reasoning module + two-level motion module (Algorithm 2); RM+RRT-Connect: the same reasoning module, the
-# motion module replaced by OMPL's RRT-Connect ([138], [139]); DRL: one flat DDPG + HER agent, no reasoning module.
-TAMPS.register("ours", TampConfig, f"{SYSTEMS}:OursSystem")
-TAMPS.register("rm_rrt_connect", TampConfig, f"{SYSTEMS}:RMRRTConnectSystem")
-TAMPS.register("drl", TampConfig, f"{SYSTEMS}:DRLSystem")
+# Table 4.3's rows, in its order: name -> (system class in hrc_lab.tamp.systems, the reports' label). Ours:
+# reasoning module + two-level motion module (Algorithm 2); DRL: one flat DDPG + HER agent, no reasoning module;
+# RM+RRT-Connect: the same reasoning module, the motion module replaced by OMPL's RRT-Connect ([138], [139]).
+SYSTEMS = {"ours": ("OursSystem", "Ours (Algorithm 2)"),
+           "drl": ("DRLSystem", "DRL (DDPG + HER)"),
+           "rm_rrt_connect": ("RMRRTConnectSystem", "RM+RRT-Connect")}
+LABELS = {name: label for name, (_, label) in SYSTEMS.items()}
+for _name, (_system, _) in SYSTEMS.items():
+    TAMPS.register(_name, TampConfig, f"hrc_lab.tamp.systems:{_system}")
