@@ -513,6 +513,19 @@ def test_target_networks_move_once_per_cycle_or_after_every_gradient_step(env):
     assert moved["step"] > 1.5 * moved["cycle"]
 
 
+def test_learning_rate_falls_linearly_to_its_final_value_at_the_last_epoch(env):
+    from hrc_lab.rl.trainer import learning_rate_at
+
+    decaying = RLS.validate({"name": "ddpg_her", "learning_rate": 1e-3, "final_learning_rate": 1e-4})
+    assert [round(learning_rate_at(decaying, e, 4), 6) for e in (1, 2, 3, 4)] == [1e-3, 7e-4, 4e-4, 1e-4]
+    assert learning_rate_at(RLS.validate({"name": "ddpg_her"}), 3, 4) == 1e-3  # null: the reference's constant
+    agent = _filled_agent(env)
+    agent.set_learning_rate(2.5e-4)
+    agent.train(gradient_steps=1, batch_size=16)
+    assert {group["lr"] for opt in (agent.actor.optimizer, agent.critic.optimizer)
+            for group in opt.param_groups} == {2.5e-4}
+
+
 def test_reach_env_goal_is_a_point_near_the_lip_and_its_achieved_goal_is_the_lip():
     cfg = RLConfig(**TINY, suction="auto", delta_r=0.05)
     reach = make_reach_env(correction_cell(task="one_object", sim=SimSettings(yaw_action=True)), cfg, seed=0)
@@ -566,6 +579,8 @@ def test_ddpg_her_with_normalised_inputs_learns_a_reach_in_the_cell():
     ({"target_update": "epoch"}, "rl.target_update"),
     ({"demo_batch_size": 256}, "rl.demo_batch_size"),
     ({"guided_episodes": "both"}, "rl.guided_episodes"),
+    ({"final_learning_rate": 1e-2}, "rl.final_learning_rate"),
+    ({"final_learning_rate": 0.0}, "rl.final_learning_rate"),
 ])
 def test_config_errors_name_the_key(values, key):
     with pytest.raises(ConfigError, match=key.replace(".", r"\.")):

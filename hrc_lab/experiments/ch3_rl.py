@@ -16,7 +16,7 @@ per subtask; epoch ``k * epochs + e`` of the run is epoch ``e`` of subtask ``k``
 :func:`~hrc_lab.rl.agent.evaluate`), ``train_success_rate``, ``train_collision_rate``, ``train_grip_rate``,
 ``train_moved_rate``, ``train_final_distance`` and ``train_guidance_rate`` (that epoch's training episodes,
 exploration noise and guidance included; :class:`~hrc_lab.rl.agent.EpisodeMetrics`), ``env_steps_per_s``,
-``updates_per_s`` and ``epoch_s`` as MLflow metrics with ``step`` = the epoch.
+``updates_per_s``, ``epoch_s`` and ``learning_rate`` as MLflow metrics with ``step`` = the epoch.
 """
 
 from __future__ import annotations
@@ -76,7 +76,7 @@ def save_checkpoint(ctx: RunContext, agent, subtask: int) -> None:
 EPOCH_METRICS = ("success_rate", "collision_rate", "final_distance", "grip_rate", "moved_rate",
                  "train_success_rate", "train_collision_rate", "train_grip_rate", "train_moved_rate",
                  "train_final_distance", "train_guidance_rate", "env_steps_per_s", "updates_per_s", "epoch_s",
-                 "subtask")
+                 "learning_rate", "subtask")
 
 
 def resume_agent(ctx: RunContext, env, subtask: int):

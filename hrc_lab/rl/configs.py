@@ -56,6 +56,11 @@ class RLConfig:
     release: str = "support"
     # --- DDPG (HER paper: Adam 1e-3, 3 x 256 ReLU layers, batch 256, gamma 0.98, polyak 0.95, 20 % Gaussian noise) ---
     learning_rate: float = 1e-3
+    # Adam's step size (actor and critic) falls linearly from learning_rate at the first epoch to this at the run's
+    # last epoch (hrc_lab.rl.trainer.learning_rate_at); null: constant (the HER reference). Not in the thesis: a
+    # trained Fig. 3.13 agent (one object, lambda 0.7, 60 epochs at 1e-3) continued 6 epochs at 1e-4 placed within
+    # delta_r in 0.80-0.95 of 40 held-out scenes, at 1e-3 in 0.63-0.88 (docs/chapters/ch3_rl.md)
+    final_learning_rate: float | None = None
     net_arch: list[int] = field(default_factory=lambda: [256, 256, 256])  # actor and critic hidden layers
     batch_size: int = 256
     gamma: float = 0.98
@@ -128,6 +133,9 @@ class RLConfig:
                     "cycles_per_epoch", "episodes_per_cycle", "gradient_steps", "n_envs"):
             if getattr(self, key) < 1:
                 raise ValueError(f"rl.{key} must be >= 1, got {getattr(self, key)}")
+        if self.final_learning_rate is not None and not 0 < self.final_learning_rate <= self.learning_rate:
+            raise ValueError(f"rl.final_learning_rate must be in (0, rl.learning_rate={self.learning_rate}] or null "
+                             f"(constant), got {self.final_learning_rate}")
         for key in ("learning_rate", "action_noise_std", "delta_g", "subgoal_tolerance"):
             if not getattr(self, key) > 0:
                 raise ValueError(f"rl.{key} must be > 0, got {getattr(self, key)}")

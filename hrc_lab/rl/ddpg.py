@@ -38,7 +38,7 @@ import torch as th
 import torch.nn.functional as F
 from stable_baselines3 import DDPG
 from stable_baselines3.common.type_aliases import DictReplayBufferSamples
-from stable_baselines3.common.utils import polyak_update
+from stable_baselines3.common.utils import get_schedule_fn, polyak_update
 
 from hrc_lab.rl.buffers import FilledHerReplayBuffer
 from hrc_lab.rl.normalization import update_normalizers
@@ -184,6 +184,12 @@ class HerDDPG(DDPG):
             self.actor.optimizer.step()
         polyak_update(self.actor.parameters(), self.actor_target.parameters(), 1.0)
         self.critic_warmup_until = self._n_updates + self.critic_warmup_steps
+
+    def set_learning_rate(self, value: float) -> None:
+        """Adam's step size of the actor and the critic from the next cycle on (the trainer's per-epoch schedule,
+        :func:`hrc_lab.rl.trainer.learning_rate_at`)."""
+        self.learning_rate = value
+        self.lr_schedule = get_schedule_fn(value)
 
     def _update_targets(self) -> None:
         polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)

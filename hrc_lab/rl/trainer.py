@@ -88,6 +88,14 @@ class _GoalEnvFactory:
         return GuidedEnv(env, self.guide, self.rl_cfg.lam, self.rl_cfg.delta_g, seed=seed)
 
 
+def learning_rate_at(cfg: RLConfig, epoch: int, epochs: int) -> float:
+    """Adam's step size in ``epoch`` (1-based) of ``epochs``: ``rl.learning_rate`` falling linearly to
+    ``rl.final_learning_rate`` at the last epoch, or constant when that is null."""
+    if cfg.final_learning_rate is None or epochs == 1:
+        return cfg.learning_rate
+    return cfg.learning_rate + (cfg.final_learning_rate - cfg.learning_rate) * (epoch - 1) / (epochs - 1)
+
+
 def completed_epochs(agent: Any, cfg: RLConfig) -> int:
     """Epochs an agent (e.g. a resumed one) has trained."""
     return agent.num_timesteps // episode_horizon(agent) // episodes_per_epoch(cfg)
@@ -99,7 +107,8 @@ def train_epochs(agent: Any, cfg: RLConfig, epochs: int, evaluate: Callable[[Any
     """Train ``agent`` to ``epochs`` epochs (a resumed agent continues after the epochs it has). After each epoch:
     ``evaluate(agent, epoch)`` (the deterministic policy's scores; None: no evaluation), the epoch's training
     episodes' rates (:class:`~hrc_lab.rl.agent.EpisodeMetrics`), ``env_steps_per_s`` (collected steps / time in
-    collection, guidance included), ``updates_per_s`` (gradient steps / time in training) and ``epoch_s``, logged
+    collection, guidance included), ``updates_per_s`` (gradient steps / time in training), ``epoch_s`` and the epoch's ``learning_rate``
+    (:func:`learning_rate_at`), logged
     with ``log(metrics, step_offset + epoch)``; ``save(agent)`` every ``checkpoint_every`` epochs and at the end."""
     per_epoch = episodes_per_epoch(cfg)
     timer = PhaseTimes()
@@ -110,6 +119,8 @@ def train_epochs(agent: Any, cfg: RLConfig, epochs: int, evaluate: Callable[[Any
     for epoch in tqdm(range(done + 1, epochs + 1), desc=desc, unit="epoch", initial=done, total=epochs):
         start, steps, updates = time.perf_counter(), agent.num_timesteps, agent._n_updates
         collect_s, train_s = timer.collect_s, timer.train_s
+        learning_rate = learning_rate_at(cfg, epoch, epochs)
+        agent.set_learning_rate(learning_rate)
         learn_episodes(agent, epoch * per_epoch, callback)
         metrics = dict(evaluate(agent, epoch)) if evaluate is not None else {}
         metrics.update({key: training.get(key, float("nan")) for key in TRAIN_METRICS})
@@ -117,6 +128,7 @@ def train_epochs(agent: Any, cfg: RLConfig, epochs: int, evaluate: Callable[[Any
             "env_steps_per_s": (agent.num_timesteps - steps) / max(1e-9, timer.collect_s - collect_s),
             "updates_per_s": (agent._n_updates - updates) / max(1e-9, timer.train_s - train_s),
             "epoch_s": time.perf_counter() - start,
+            "learning_rate": learning_rate,
         })
         log(metrics, step_offset + epoch)
         if epoch % checkpoint_every == 0 or epoch == epochs:
