@@ -9,17 +9,14 @@ also how many episodes held the part, moved it more than 2 cm, or collided. Prin
 import argparse
 import os
 import tempfile
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import torch
 from mlflow.tracking import MlflowClient
-from omegaconf import OmegaConf
 
-from hrc_lab.config import register_schemas, validate_config
 from hrc_lab.rl.agent import MOVED_M, HerDDPG, run_episode
-from hrc_lab.rl.evaluation import evaluation_env, evaluation_seed
+from hrc_lab.rl.evaluation import evaluation_env, evaluation_seed, saved_run
 
 
 def replay(agent: HerDDPG, env, seed: int) -> dict[str, float]:
@@ -40,7 +37,6 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
-    register_schemas()
     client = MlflowClient(args.tracking_uri)
     experiments = [e.experiment_id for e in client.search_experiments()]
     runs = client.search_runs(experiments, f"tags.sweep = '{args.sweep}' and attributes.status = 'FINISHED'")
@@ -49,11 +45,9 @@ def main() -> None:
         if "agents" not in {a.path for a in client.list_artifacts(run.info.run_id)}:
             continue  # the sweep's summary run
         with tempfile.TemporaryDirectory() as tmp:
-            cfg = validate_config(OmegaConf.load(client.download_artifacts(run.info.run_id, "config/resolved.yaml",
-                                                                           tmp)))
-            agents = Path(client.download_artifacts(run.info.run_id, "agents", tmp))
-            seed = int(run.data.params["seed"])
-            for folder in sorted(agents.glob("subtask*")):
+            saved = saved_run(client, run.info.run_id, tmp)
+            cfg, seed = saved.cfg, saved.seed
+            for folder in sorted(saved.agents.glob("subtask*")):
                 subtask = int(folder.name.removeprefix("subtask"))
                 env = evaluation_env(cfg.env, cfg.rl, seed, subtask)
                 agent = HerDDPG.load(folder / "agent.zip", env=env, device="cpu")

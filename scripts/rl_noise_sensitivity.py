@@ -9,15 +9,13 @@ Gaussian noise of std ``sigma`` on the [-1, 1] actions, or replaced by a uniform
 import argparse
 import os
 import tempfile
-from pathlib import Path
 
 import numpy as np
 import torch
 from mlflow.tracking import MlflowClient
-from omegaconf import OmegaConf
 
-from hrc_lab.config import register_schemas, validate_config
 from hrc_lab.rl.agent import HerDDPG
+from hrc_lab.rl.evaluation import saved_run
 from hrc_lab.rl.goal_env import make_goal_env
 
 SETTINGS = ((0.0, 0.0), (0.05, 0.0), (0.1, 0.0), (0.2, 0.0), (0.0, 0.1), (0.2, 0.3))  # (sigma, eps)
@@ -49,14 +47,11 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
-    register_schemas()
     client = MlflowClient(args.tracking_uri)
-    run = client.get_run(args.run_id)
     with tempfile.TemporaryDirectory() as tmp:
-        cfg = validate_config(OmegaConf.load(client.download_artifacts(args.run_id, "config/resolved.yaml", tmp)))
-        folder = Path(client.download_artifacts(args.run_id, "agents/subtask0", tmp))
-        env = make_goal_env(cfg.env, cfg.rl, seed=int(run.data.params["seed"]), subtask=0)
-        agent = HerDDPG.load(folder / "agent.zip", env=env, device="cpu")
+        saved = saved_run(client, args.run_id, tmp)
+        env = make_goal_env(saved.cfg.env, saved.cfg.rl, seed=saved.seed, subtask=0)
+        agent = HerDDPG.load(saved.agents / "subtask0" / "agent.zip", env=env, device="cpu")
         print("| noise std | random-action share | success rate |\n|---|---|---|")
         for sigma, eps in SETTINGS:
             print(f"| {sigma:g} | {eps:g} | {success_rate(agent, env, sigma, eps, args.episodes):.2f} |", flush=True)

@@ -59,7 +59,8 @@ class RLConfig:
     # Adam's step size (actor and critic) falls linearly from learning_rate at the first epoch to this at the run's
     # last epoch (hrc_lab.rl.trainer.learning_rate_at); null: constant (the HER reference). Not in the thesis: a
     # trained Fig. 3.13 agent (one object, lambda 0.7, 60 epochs at 1e-3) continued 6 epochs at 1e-4 placed within
-    # delta_r in 0.80-0.95 of 40 held-out scenes, at 1e-3 in 0.63-0.88 (docs/chapters/ch3_rl.md)
+    # delta_r in 0.68-0.95 (mean 0.82) of 40 held-out scenes per epoch, at 1e-3 in 0.63-0.83 (mean 0.72)
+    # (scripts/rl_continue.py; docs/chapters/ch3_rl.md)
     final_learning_rate: float | None = None
     net_arch: list[int] = field(default_factory=lambda: [256, 256, 256])  # actor and critic hidden layers
     batch_size: int = 256

@@ -38,7 +38,7 @@ import torch as th
 import torch.nn.functional as F
 from stable_baselines3 import DDPG
 from stable_baselines3.common.type_aliases import DictReplayBufferSamples
-from stable_baselines3.common.utils import get_schedule_fn, polyak_update
+from stable_baselines3.common.utils import ConstantSchedule, polyak_update
 
 from hrc_lab.rl.buffers import FilledHerReplayBuffer
 from hrc_lab.rl.normalization import update_normalizers
@@ -189,7 +189,7 @@ class HerDDPG(DDPG):
         """Adam's step size of the actor and the critic from the next cycle on (the trainer's per-epoch schedule,
         :func:`hrc_lab.rl.trainer.learning_rate_at`)."""
         self.learning_rate = value
-        self.lr_schedule = get_schedule_fn(value)
+        self.lr_schedule = ConstantSchedule(value)
 
     def _update_targets(self) -> None:
         polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)

@@ -107,9 +107,9 @@ def train_epochs(agent: Any, cfg: RLConfig, epochs: int, evaluate: Callable[[Any
     """Train ``agent`` to ``epochs`` epochs (a resumed agent continues after the epochs it has). After each epoch:
     ``evaluate(agent, epoch)`` (the deterministic policy's scores; None: no evaluation), the epoch's training
     episodes' rates (:class:`~hrc_lab.rl.agent.EpisodeMetrics`), ``env_steps_per_s`` (collected steps / time in
-    collection, guidance included), ``updates_per_s`` (gradient steps / time in training), ``epoch_s`` and the epoch's ``learning_rate``
-    (:func:`learning_rate_at`), logged
-    with ``log(metrics, step_offset + epoch)``; ``save(agent)`` every ``checkpoint_every`` epochs and at the end."""
+    collection, guidance included), ``updates_per_s`` (gradient steps / time in training), ``epoch_s`` and the
+    epoch's ``learning_rate`` (:func:`learning_rate_at`), logged with ``log(metrics, step_offset + epoch)``;
+    ``save(agent)`` every ``checkpoint_every`` epochs and at the end."""
     per_epoch = episodes_per_epoch(cfg)
     timer = PhaseTimes()
     training: dict[str, float] = {}  # the epoch's training episodes (guided ones included), as they ended
