@@ -42,7 +42,8 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
             ax.plot(mean.index, mean.values, color=colour, linewidth=2, label=ARMS.get(lam, f"λ = {lam}"))
             csv += [{"scenario": scenario, "lam": lam, "epoch": int(s), "sr_mean": v} for s, v in mean.items()]
             done = runs[(runs.scenario == scenario) & (runs.lam == lam)]
-            row = {"experiment": scenario.replace("_", " "), "λ": lam, "seeds": len(done)}
+            row = {"experiment": scenario.replace("_", " "), "λ": lam, "seeds": len(done),
+                   "epochs (Adam step size)": budget_text(done)}
             for metric, label in (("final_success_rate", "final SR"), ("best_success_rate", "best SR"),
                                   ("final_distance", "final ‖P_obj − P_goal‖ (evaluation)"),
                                   ("final_grip_rate", "evaluation episodes that held the part"),
@@ -67,6 +68,19 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
     if any("–" in row.values() for row in rows):
         text += ["", "–: a metric these runs did not log (they ran before it was added)."]
     return Section(title, "\n".join(text), pd.DataFrame(csv), {png: fig})
+
+
+def budget_text(runs: pd.DataFrame) -> str:
+    """The runs' epochs per subtask and Adam step size, e.g. "10 (1e-3 → 1e-4)" for ``rl.final_learning_rate``'s
+    linear fall, "4 (1e-3)" when constant (runs from before the key logged none); several joined by " or "."""
+    def one(run: pd.Series) -> str:
+        start, final = run.get(f"{PARAM_PREFIX}rl.learning_rate"), run.get(f"{PARAM_PREFIX}rl.final_learning_rate")
+        rate = f"{float(start):g}" if start == start and start is not None else "?"
+        if final is not None and final == final and str(final) != "None":
+            rate += f" → {float(final):g}"
+        return f"{run.get(f'{PARAM_PREFIX}protocol.epochs', '?')} ({rate})"
+
+    return " or ".join(sorted({one(run) for _, run in runs.iterrows()}))
 
 
 def net_arch(runs: pd.DataFrame) -> str:
@@ -110,7 +124,8 @@ def epoch_text(runs: pd.DataFrame) -> str:
             f"{amount(runs, 'rl.steps_per_subtask', 'control steps')} and "
             f"{amount(runs, 'rl.gradient_steps', 'gradient steps')}, then "
             f"{amount(runs, 'protocol.eval_episodes', 'evaluation episodes')} of the deterministic policy on held-out "
-            f"scenes; {amount(runs, 'protocol.epochs', 'epochs')} per subtask, subtasks in sequence (thesis: within "
+            f"scenes; {amount(runs, 'protocol.epochs', 'epochs')} per subtask (each row's, and its Adam step size, in "
+            "its own column), subtasks in sequence (thesis: within "
             "550 epochs, read as the reference implementation's). Agent: DDPG + HER, hidden layers "
             f"{net_arch(runs)}, {inputs_text(runs)}, {ddpg_text(runs)}; planner trained on "
             f"{amount(runs, 'protocol.demos', 'expert demonstrations')}. Final SR: the last epoch's evaluation, "
