@@ -14,6 +14,7 @@ DRL_DEMO_SCENES = 5000  # Table 4.3's DRL: the scripted demonstrations put in it
 DRL_EVAL_SCENES = 9000  # Table 4.3's DRL: its per-epoch evaluation during training
 RL_EVAL_SCENES = 10_000  # Fig. 3.12 / 3.13: the per-epoch evaluation of each subtask's agent
 EXPERT_DEMO_SCENES = 20_000  # Fig. 3.12 / 3.13: the scripted demonstrations put in each agent's demonstration buffer
+DAGGER_SCENES = 30_000  # Table 3.1's DAgger rounds: the training scenes the learned planner rolls in
 
 
 def scene_seed(seed: int, offset: int) -> int:

@@ -8,8 +8,11 @@ import numpy as np
 from hrc_lab.data.demos import OBS_KEYS, Demo
 
 
-def record_episode(env, expert, action_noise: float = 0.0, rng: np.random.Generator | None = None) -> Demo:
-    """Run one expert episode from a fresh reset and return it as a :class:`~hrc_lab.data.demos.Demo`.
+def record_episode(env, expert, action_noise: float = 0.0, rng: np.random.Generator | None = None,
+                   reset: bool = True) -> Demo:
+    """Run one expert episode from a fresh reset and return it as a :class:`~hrc_lab.data.demos.Demo`; with
+    ``reset=False`` the expert starts from the cell's current state (DAgger: it takes over where a closed loop left
+    the cell, :mod:`hrc_lab.motion.dagger`).
 
     ``action_noise`` > 0 (DART, Laskey et al. 2017): the executed action's joint deltas get Gaussian noise of that
     std (rad, drawn from ``rng``) while the expert's own action is recorded, so the demonstrations visit the states
@@ -20,7 +23,7 @@ def record_episode(env, expert, action_noise: float = 0.0, rng: np.random.Genera
         raise ValueError("action_noise needs an rng (the scene's own generator must not be consumed)")
 
     env.step_observations = True  # the columns are robosuite's observations, which a lean step computes on request
-    obs = env.reset()
+    obs = env.reset() if reset else env.observations()
     expert.reset()
     episode = {"scenario": getattr(env, "task", None) or "package_to_order", "plan": list(env.expert_plan())}
     if getattr(env, "episode", None) is not None:

@@ -3,38 +3,43 @@ planner vs. a full-observation actor)."""
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
 from hrc_lab.env import ENVS
+from hrc_lab.motion.dagger import dagger, takeover_demos
 from hrc_lab.motion.demonstrations import correction_demos
 from hrc_lab.motion.training import train_two_level
 from hrc_lab.run_context import RunContext
-from hrc_lab.seeds import TEST_SCENES, scene_seed
+from hrc_lab.seeds import DAGGER_SCENES, TEST_SCENES, scene_seed
 
 COLOURS = {1: "blue", 2: "red"}
 
 
 def table_3_1(ctx: RunContext) -> dict[str, float]:
-    from hrc_lab.motion.two_level import capped_share, run_correction
+    from hrc_lab.motion.two_level import capped_share
 
     config, protocol = ctx.cfg.env, ctx.cfg.protocol
     env = ENVS.build(config, seed=ctx.seed)
     demos = correction_demos(env, protocol.demos, protocol.subgoals_per_stage, protocol.segmentation_penalty,
                              f"demos {config.cell}", protocol.placement_noise, ctx.rng(5), protocol.action_noise,
                              ctx.rng(6))
-    classifier, planner, ndp = train_two_level(ctx.cfg.motion, env, demos, protocol.stage_starts,
-                                               protocol.subgoals_per_stage, ctx.trainer, ctx.seed,
-                                               protocol.planner_input)
+
+    def train(data: list) -> tuple:
+        return train_two_level(ctx.cfg.motion, env, data, protocol.stage_starts, protocol.subgoals_per_stage,
+                               ctx.trainer, ctx.seed, protocol.planner_input)
+
+    collect = dagger_collector(ctx) if protocol.dagger_rounds else None
+    models, aggregated = dagger(train, collect, demos, protocol.dagger_rounds)
+    _, planner, ndp = models
+    loop = correction_loop(protocol, models)
     test = ENVS.build(config, seed=scene_seed(ctx.seed, TEST_SCENES))
     rows, stage_rows = [], []
     for trial in tqdm(range(protocol.trials), desc=f"table 3.1 {config.cell}", unit="trial"):
-        out, final = run_correction(test, planner, ndp, classifier, protocol.subgoals_per_stage,
-                                    protocol.max_steps_per_subgoal, protocol.tolerance,
-                                    ground_truth_stages=protocol.stage_labels == "ground_truth",
-                                    planner_input=protocol.planner_input,
-                                    placement_oracle=protocol.placement_oracle)
+        out, final = loop(test)
         offsets = out.pick_offsets + [np.full(3, np.nan)] * (len(out.picks) - len(out.pick_offsets))
         stage_rows += [{"trial": trial, "stage": k, "picked": COLOURS[obj], "expert": COLOURS[expert],
                         "moved_error_m": moved, "pick_xy_m": float(np.linalg.norm(offset[:2])),
@@ -54,6 +59,8 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
     ctx.tracker.log_torch_model(planner.network, "model/subgoal.pt")
     ctx.tracker.log_torch_model(ndp.network, "model/ndp.pt")
     metrics = {"planning_ms": float(trials.planning_ms.mean()), "n_demos": float(len(demos))}
+    if protocol.dagger_rounds:
+        metrics["n_dagger_demos"] = float(len(aggregated) - len(demos))
     for colour, part in trials.groupby("object"):
         for threshold in protocol.thresholds:
             metrics[f"sr_{colour}_{threshold:g}"] = float(part[f"success_{threshold:g}"].mean())
@@ -63,6 +70,34 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
         metrics[f"fail_{failure}"] = float((per_trial.failure == failure).mean())
     metrics["subgoals_capped"] = capped_share(per_trial)
     return metrics | stage_metrics(pd.DataFrame(stage_rows), ctx)
+
+
+def correction_loop(protocol, models, **overrides):
+    """The closed loop of Table 3.1 with the trained ``models`` (c(x), sub-goal planner, neural dynamic planner)
+    and the protocol's execution settings: ``loop(env, **more)`` runs
+    :func:`~hrc_lab.motion.two_level.run_correction`; ``overrides`` and ``more`` replace its keywords."""
+    from hrc_lab.motion.two_level import run_correction
+
+    classifier, planner, ndp = models
+    settings = dict(n_subgoals=protocol.subgoals_per_stage, max_steps=protocol.max_steps_per_subgoal,
+                    tolerance=protocol.tolerance, ground_truth_stages=protocol.stage_labels == "ground_truth",
+                    planner_input=protocol.planner_input, placement_oracle=protocol.placement_oracle)
+    return partial(run_correction, planner=planner, ndp=ndp, classifier=classifier, **settings | overrides)
+
+
+def dagger_collector(ctx: RunContext):
+    """DAgger's expert labels for Table 3.1 (:mod:`hrc_lab.motion.dagger`): ``collect(models)`` rolls the loop of
+    ``models`` in for ``protocol.dagger_episodes`` scenes of the job's DAgger scenes (their own stream,
+    :data:`~hrc_lab.seeds.DAGGER_SCENES`; every round draws new ones) and returns the scripted expert's
+    demonstrations of the later stages from there. The roll-in never uses the placement oracle: DAgger labels the
+    states the learner reaches."""
+    config, protocol = ctx.cfg.env, ctx.cfg.protocol
+    env = ENVS.build(config, seed=scene_seed(ctx.seed, DAGGER_SCENES))
+    rng = ctx.rng(7)
+    return lambda models: takeover_demos(env, correction_loop(protocol, models, placement_oracle=False),
+                                         protocol.dagger_episodes, protocol.subgoals_per_stage,
+                                         protocol.segmentation_penalty, f"dagger {config.cell}",
+                                         protocol.placement_noise, rng)
 
 
 def stage_metrics(stages: pd.DataFrame, ctx: RunContext) -> dict[str, float]:

@@ -389,7 +389,11 @@ class Table31Protocol:
     ``placement_oracle``: every released object is set exactly onto its goal before the next stage, so a second
     object's trial starts as the demonstrations' did (a diagnosis; the first object's SR is then not a result).
     ``action_noise``: std (rad) of Gaussian noise on the joint deltas the demonstrations execute, the expert's
-    action being recorded (DART; ``hrc_lab.experiments.collect.record_episode``; an ablation)."""
+    action being recorded (DART; ``hrc_lab.experiments.collect.record_episode``; an ablation).
+    ``dagger_rounds``: rounds of DAgger (Ross, Gordon and Bagnell 2011; not in the thesis) after training: the
+    learned planner runs the first manipulation in ``dagger_episodes`` fresh training scenes, the scripted expert
+    demonstrates the rest from there, and the planner is retrained on all demonstrations
+    (``hrc_lab.motion.dagger``); 0 = off."""
 
     demos: int = 20
     trials: int = 50
@@ -405,8 +409,14 @@ class Table31Protocol:
     planner_input: str = "full"
     placement_oracle: bool = False
     action_noise: float = 0.0
+    dagger_rounds: int = 0
+    dagger_episodes: int = 20
 
     def __post_init__(self) -> None:
+        if self.dagger_rounds < 0:
+            raise ValueError(f"protocol.dagger_rounds must be >= 0, got {self.dagger_rounds}")
+        if self.dagger_episodes < 1:
+            raise ValueError(f"protocol.dagger_episodes must be >= 1, got {self.dagger_episodes}")
         if self.action_noise < 0:
             raise ValueError(f"protocol.action_noise must be >= 0 rad, got {self.action_noise}")
         if self.stage_labels not in STAGE_LABELS:

@@ -246,19 +246,22 @@ def run_package(env, motion: TwoLevelMotion) -> Rollout:
 
 def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps: int = 30,
                    tolerance: float = 0.008, ground_truth_stages: bool = False,
-                   planner_input: str = "full", placement_oracle: bool = False) -> tuple[Rollout, np.ndarray]:
+                   planner_input: str = "full", placement_oracle: bool = False,
+                   manipulations: int | None = None) -> tuple[Rollout, np.ndarray]:
     """One error-correction trial: for each manipulation the case needs, the classifier c(x) labels the stage
     from the raw observation at its start (which object to pick), the placing stage of that object follows, and
     the planner proposes the sub-goals of each stage. ``ground_truth_stages``: the expert's plan names the object
     to pick instead of c(x) (a diagnosis of the classifier, not the thesis' system); ``planner_input`` as the
     planner was trained (:func:`correction_input`); ``placement_oracle``: each released object is set exactly onto
-    its goal before the next stage (a diagnosis of how a placement error propagates). Returns the rollout (with the
-    object each picking stage went for) and the final object positions."""
+    its goal before the next stage (a diagnosis of how a placement error propagates); ``manipulations``: stop after
+    that many pick-and-place manipulations, the released part settled (DAgger's roll-in,
+    :mod:`hrc_lab.motion.dagger`; default all the case needs). Returns the rollout (with the object each picking
+    stage went for) and the final object positions."""
     env.reset()
     out = Rollout()
     label = 0
     order = env.expert_plan()
-    for k in range(2 * len(order)):
+    for k in range(2 * (len(order) if manipulations is None else manipulations)):
         if k % 2 == 1:
             label += 1
         elif ground_truth_stages:

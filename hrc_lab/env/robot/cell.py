@@ -571,6 +571,11 @@ class HRCCell(ManipulationEnv):
         """robosuite's success hook (its wrappers call it): :meth:`success`."""
         return self.success()
 
+    def observations(self) -> dict:
+        """robosuite's observation dict of the cell's current state, computed now (e.g. for a recording that starts
+        where a closed loop left the cell, :func:`hrc_lab.data.recording.record_episode`)."""
+        return self._get_observations(force_update=True)
+
     def raw_observation(self) -> np.ndarray:
         """The flat DRL state of 3.3: joint angles, end-effector pose, object poses (x, y, z, yaw), goals."""
         poses = np.column_stack([self.object_positions(), self.object_yaws()])
