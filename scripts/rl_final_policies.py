@@ -4,6 +4,9 @@ held-out scenes, the deterministic policy) and splits |P_obj - P_goal| into the 
 also how many episodes held the part, moved it more than 2 cm, or collided. Prints one row per (scenario, lambda).
 
     .venv/bin/python scripts/rl_final_policies.py 2026-12-02_06-55-00 [--tracking-uri URI] [--episodes 10]
+
+A run id instead of a sweep replays that run's saved agents whatever its status (e.g. a long run's latest
+checkpoint, on the held-out scenes of its configured last epoch).
 """
 
 import argparse
@@ -31,7 +34,7 @@ def replay(agent: HerDDPG, env, seed: int) -> dict[str, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("sweep", help="the sweep's folder name (MLflow tag `sweep`)")
+    parser.add_argument("sweep", help="the sweep's folder name (MLflow tag `sweep`), or one MLflow run id")
     parser.add_argument("--tracking-uri", default="sqlite:///runs/mlflow.db")
     parser.add_argument("--episodes", type=int, default=10, help="evaluation episodes per agent")
     args = parser.parse_args()
@@ -39,7 +42,8 @@ def main() -> None:
     os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
     client = MlflowClient(args.tracking_uri)
     experiments = [e.experiment_id for e in client.search_experiments()]
-    runs = client.search_runs(experiments, f"tags.sweep = '{args.sweep}' and attributes.status = 'FINISHED'")
+    runs = client.search_runs(experiments, f"attributes.run_id = '{args.sweep}'")  # a run id: that run, any status
+    runs = runs or client.search_runs(experiments, f"tags.sweep = '{args.sweep}' and attributes.status = 'FINISHED'")
     rows = []
     for run in runs:
         if "agents" not in {a.path for a in client.list_artifacts(run.info.run_id)}:
