@@ -1,3 +1,4 @@
+import dataclasses
 import math
 
 import numpy as np
@@ -132,6 +133,18 @@ def test_scored_labels_are_the_trained_labels(method):
     obs = observations(demos(2))
     encoded = np.array([[int(d.o_label), int(d.g_label)] for d in map(reasoner.encode, obs)])
     np.testing.assert_array_equal(reasoner.labels(obs), encoded)
+
+
+def test_gnn_task_goal_nodes_name_the_slot_wherever_the_box_stands():
+    """Issue 45: GNN-task's labels name a place in the box (4.2.1), so its goal nodes sit relative to the box: a box
+    moved by more than a slot spacing leaves them as they were (at table coordinates GNN-task could not fit P_g)."""
+    reasoner = REASONERS.build(REASONERS.validate({"name": "gnn_task"}), spec=SPEC)
+    placing = observations(demos(1))[1]
+    moved = dataclasses.replace(placing, slot_positions=placing.slot_positions + [0.1, -0.05, 0.0])
+    graph, graph_moved = reasoner.encode(placing).x, reasoner.encode(moved).x
+    goal = graph[:, 3] == 1
+    torch.testing.assert_close(graph_moved[goal], graph[goal])
+    torch.testing.assert_close(graph_moved[~goal], graph[~goal])  # object nodes: where the products are
 
 
 @pytest.mark.parametrize("cell, ratio", [((3, 5), 0.2), ((3, 5), 0.6), ((4, 5), 0.8), ((2, 3), 0.4)])

@@ -35,9 +35,11 @@ ABLATION = "protocol.min_demos=60"
 
 
 def log_run(logger: LoggerConfig, *, cell: str, sweep: str, sr: float, variant: str | None = "default",
-            extra: str = "", min_demos: int = 200, status: str = "FINISHED", seed: int = 0) -> str:
+            extra: str = "", min_demos: int = 200, status: str = "FINISHED", seed: int = 0,
+            config: dict | None = None, metrics: dict | None = None) -> str:
     """One run as ``hrc-lab experiment=ch4/table_4_1`` logs it: tags, resolved config as params, final metrics.
-    ``variant=None`` leaves out the variant tags (runs logged before they existed)."""
+    ``variant=None`` leaves out the variant tags (runs logged before they existed); ``config`` and ``metrics`` add
+    config keys and metrics."""
     base = f"env=package_to_order_{cell} reasoning=ours seed={seed}"
     tags = {"chapter": "ch4", "table": "table_4_1", "experiment": EXPERIMENT, "method": "ours", "cell": cell,
             "scenario": cell, "seed": str(seed), "sweep": sweep}
@@ -46,9 +48,10 @@ def log_run(logger: LoggerConfig, *, cell: str, sweep: str, sr: float, variant: 
     tracker = RunTracker(logger, EXPERIMENT, f"{EXPERIMENT}-ours-{cell}-seed{seed}", tags)
     tracker.__enter__()
     cfg = OmegaConf.create({"name": EXPERIMENT, "seed": seed,
-                            "protocol": {"name": "ch4_table_4_1", "min_demos": min_demos, "n_folds": 5}})
+                            "protocol": {"name": "ch4_table_4_1", "min_demos": min_demos, "n_folds": 5},
+                            **(config or {})})
     tracker.log_config(cfg)
-    tracker.log_metrics({"sr": sr, "latency_ms_batch1": 1.25, "latency_ms_batched": 0.05})
+    tracker.log_metrics({"sr": sr, "latency_ms_batch1": 1.25, "latency_ms_batched": 0.05, **(metrics or {})})
     if status == "FINISHED":
         tracker.__exit__(None, None, None)
     elif status != "RUNNING":
@@ -132,6 +135,37 @@ def test_report_keeps_default_rows_and_gives_each_ablation_its_own_section(store
     images = re.findall(r"!\[(table_4_1[^\]]*)\]", markdown)
     assert images == ["table_4_1.png", "table_4_1_vdeadbeef.png"]
     assert all((tmp_path / "reports" / "ch4_reasoning" / name).is_file() for name in images)
+
+
+def test_an_ablation_run_at_other_ranges_says_it_is_not_comparable(tmp_path):
+    """Issue 45: an ablation section names the test conditions its runs logged where they differ from the default
+    section's runs of its cells (beyond its own overrides), with the spans both covered, from the runs alone."""
+    logger = LoggerConfig(tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}",
+                          artifact_root=str(tmp_path / "mlartifacts"))
+
+    def conditions(jitter: list[float], goal_span: float) -> dict:
+        spans = {"pick_span_x_m": 0.35, "pick_span_y_m": 0.15, "goal_span_x_m": goal_span, "goal_span_y_m": 0.08,
+                 "object_goal_min_m": 0.4, "object_goal_max_m": 0.8}
+        return dict(config={"logger": {"tracking_uri": logger.tracking_uri},
+                            "env": {"box_jitter": jitter, "pick_jitter": [0.015, 0.075]}}, metrics=spans)
+
+    log_run(logger, cell="4of5", sweep=DEFAULT_SWEEP, sr=0.9, **conditions([0.135, 0.1], 0.43))
+    log_run(logger, cell="4of5", sweep=ABLATION_SWEEP, sr=0.1, variant="vdeadbeef", extra=ABLATION, min_demos=60,
+            **conditions([0.0, 0.0], 0.16))
+    own = "env.box_jitter=[0.0,0.0]"  # an ablation of the ranges themselves: its overrides say so already
+    log_run(logger, cell="4of5", sweep=ABLATION_SWEEP, sr=0.2, variant="vbeefcafe", extra=own,
+            **conditions([0.0, 0.0], 0.16))
+    markdown = build_topic("ch4_reasoning", logger.tracking_uri, tmp_path / "reports").read_text()
+
+    note = "**Not comparable with the default section:**"
+    ablation = section_text(markdown, f"{TITLE} — ablation: {ABLATION}")
+    assert ablation.split("\n")[6].startswith(note)  # above the table, below the Reproduce and Runs lines
+    assert ("`env.box_jitter.0` 0.0 (default section: 0.135), `env.box_jitter.1` 0.0 (default section: 0.1); "
+            "positions span picking 0.35 × 0.15 m, goals 0.16 × 0.08 m here, picking 0.35 × 0.15 m, goals 0.43 × "
+            "0.08 m in the default section.") in ablation
+    assert "pick_jitter" not in ablation.split(note)[1].split("\n")[0]  # equal in both: not named
+    assert note not in section_text(markdown, TITLE)
+    assert note not in section_text(markdown, f"{TITLE} — ablation: {own}")
 
 
 def test_a_section_of_one_seed_prints_no_spread_and_says_so(store, tmp_path):

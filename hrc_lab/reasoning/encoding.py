@@ -43,9 +43,13 @@ def goal_table(obs: StageObservation, spec: PackageToOrderSpec, frame: str = DEF
     for product in range(m):
         goals[1 + product] = obs.goal_of(product)
     nonzero = np.any(goals != 0, axis=1)
-    centre = np.array([*obs.slot_positions[:, :2].mean(axis=0), spec.table_z])
-    goals[nonzero] = (goals[nonzero] - centre) * POSITION_FRAMES[frame][1]
+    goals[nonzero] = (goals[nonzero] - [*box_centre(obs), spec.table_z]) * POSITION_FRAMES[frame][1]
     return goals
+
+
+def box_centre(obs: StageObservation) -> np.ndarray:
+    """(2,) x-y of the centre of the box's slots, in metres: the origin of every goal position in x-y."""
+    return obs.slot_positions[:, :2].mean(axis=0)
 
 
 def task_labels(obs: StageObservation) -> tuple[int, int]:
@@ -100,8 +104,13 @@ def object_goal_graph(obs: StageObservation, spec: PackageToOrderSpec, label_sch
                       frame: str = DEFAULT_POSITION_FRAME) -> Data:
     """The graph of [74] as described in 4.4.1: fully connected object and goal nodes with features
     (x, y, z, is_goal, type one-hot over the m products, fulfilled, I). A goal node exists for every selected
-    product, at its assigned slot, and carries that product's type; "fulfilled" marks a packed product / filled goal."""
+    product, at its assigned slot, and carries that product's type; "fulfilled" marks a packed product / filled goal.
+
+    Goal nodes sit relative to the box in x-y, as every method's goals (:func:`goal_table`): a position-specified label
+    names a place in the box (4.2.1), which GNN-task is trained on (4.4.1). At table coordinates, with the box moving
+    more than a slot spacing (``env.box_jitter``), GNN-task could not fit P_g at placing (issue 45)."""
     m = spec.n_objects
+    box = np.array([*box_centre(obs), 0.0]) * POSITION_FRAMES[frame][1]
     rows = []
     for product in np.flatnonzero(obs.present):
         kind = np.eye(m)[product]
@@ -109,7 +118,7 @@ def object_goal_graph(obs: StageObservation, spec: PackageToOrderSpec, label_sch
                      obs.selected[product]])
     for product in np.flatnonzero(obs.selected):
         kind = np.eye(m)[product]
-        goal = scaled(obs.goal_of(product), spec, frame)
+        goal = scaled(obs.goal_of(product), spec, frame) - box
         rows.append([*goal, 1.0, *kind, obs.packed[product], 1.0])
     n = len(rows)
     src, dst = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")

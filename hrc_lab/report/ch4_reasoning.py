@@ -12,7 +12,15 @@ import pandas as pd  # noqa: E402
 from hrc_lab.reasoning.configs import CH4, DEFAULT_POSITION_FRAME, POSITION_FRAMES, REASONERS  # noqa: E402
 from hrc_lab.report.ch4_conditions import conditions_paragraph  # noqa: E402
 from hrc_lab.report.plots import success_bars  # noqa: E402
-from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, over_seeds, setting  # noqa: E402
+from hrc_lab.report.runs import (  # noqa: E402
+    NOT_LOGGED,
+    amount,
+    default_runs_of,
+    keyed,
+    mean_std,
+    over_seeds,
+    setting,
+)
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import (  # noqa: E402
     fmt,
@@ -30,6 +38,11 @@ CELLS = ["2of3", "3of3", "3of5", "4of5"]
 METHODS = list(REASONERS.family(CH4))
 LABELS = REASONERS.labels(CH4)
 OURS_FAMILY = list(REASONERS.with_variants("ours"))  # the thesis' module and issue 24's variants of it
+SPANS = ("pick_span_x_m", "pick_span_y_m", "goal_span_x_m", "goal_span_y_m")  # logged by every Table 4.1 run
+# The env keys that set Table 4.1's test conditions (where products and goals may be, Sec. 4.4.3's ranges): an
+# ablation whose runs logged other values than the default section's runs is not comparable with its rows
+CONDITION_KEYS = ("env.box_jitter.0", "env.box_jitter.1", "env.pick_jitter.0", "env.pick_jitter.1",
+                  "env.pending_spacing", "env.pending_shuffle", "env.slot_spacing")
 
 
 @register_section("table_4_1")
@@ -59,7 +72,7 @@ def table_4_1(runs: pd.DataFrame) -> Section:
             )
         rows.append(row)
     latency = runs[runs.method == "ours"].groupby("cell")[["latency_ms_batch1", "latency_ms_batched"]].mean()
-    text = [
+    text = _other_conditions(runs) + [
         "Success rate (all 2n predictions of a trial right), CASE 1, full demo set, random positions; "
         f"{over_seeds(runs)} (seed k tests on fold k mod n of an n-fold split, n = "
         f"{keyed(runs, 'protocol.n_folds')}). Thesis values in brackets.",
@@ -76,9 +89,10 @@ def table_4_1(runs: pd.DataFrame) -> Section:
             "",
             lat.to_markdown(index=False),
         ]
-    text += conditions_paragraph(runs, "ours, the MLP and RF read goals relative to the box "
-                                  "(`hrc_lab/reasoning/encoding.py`), so only the object-goal graphs of GNN [74] "
-                                  "and GNN-task, whose goal nodes sit at table coordinates, see the box move.")
+    text += conditions_paragraph(runs, "every method reads goals relative to the box "
+                                  "(`hrc_lab/reasoning/encoding.py`; the goal nodes of GNN [74] and GNN-task sat at "
+                                  "table coordinates in runs before 2026-12-03, where GNN-task could not fit P_g at "
+                                  "placing: docs/chapters/ch4.md).")
     text += _mlp_paragraph(stats, thesis, runs)
     return Section(
         "Table 4.1: reasoning success rates",
@@ -87,6 +101,36 @@ def table_4_1(runs: pd.DataFrame) -> Section:
         {"table_4_1.png": success_bars(pd.DataFrame(csv), cells, methods, LABELS, "Table 4.1",
                                        thesis_col="thesis_mean")},
     )
+
+
+def _other_conditions(runs: pd.DataFrame) -> list[str]:
+    """For an ablation's runs: the test conditions (:data:`CONDITION_KEYS`, beyond the ablation's own overrides)
+    whose logged values differ from the default section's runs of the same cells, and the position spans both
+    covered, so that no one compares rows run at other ranges; [] when they agree or the store has no default runs."""
+    default = default_runs_of(runs)
+    if default.empty:
+        return []
+    own = [item.split("=", 1)[0] + "." for item in " ".join(runs["variant_overrides"].astype(str)).split()]
+    logged = [k for k in CONDITION_KEYS if not (k + ".").startswith(tuple(own))
+              and NOT_LOGGED not in (setting(runs, k), setting(default, k))]
+    differ = [k for k in logged if setting(runs, k) != setting(default, k)]
+    if not differ:
+        return []
+    values = ", ".join(f"`{k}` {setting(runs, k)} (default section: {setting(default, k)})" for k in differ)
+    return [f"**Not comparable with the default section:** these runs were logged with other test conditions than "
+            f"its runs of the same cells: {values}{_spans_beside(runs, default)}.", ""]
+
+
+def _spans_beside(runs: pd.DataFrame, default: pd.DataFrame) -> str:
+    """ "; positions span ... here, ... in the default section" from the runs' logged spans ("" if not logged)."""
+    def spans(frame: pd.DataFrame) -> str:
+        span = frame[list(SPANS)].max()
+        return (f"picking {span.pick_span_x_m:.2f} × {span.pick_span_y_m:.2f} m, goals {span.goal_span_x_m:.2f} × "
+                f"{span.goal_span_y_m:.2f} m")
+
+    if not all(set(SPANS) <= set(f.dropna(axis=1, how="all")) for f in (runs, default)):
+        return ""
+    return f"; positions span {spans(runs)} here, {spans(default)} in the default section"
 
 
 def _frame_text(frame: str) -> str:

@@ -69,6 +69,17 @@ def fetch_runs(
     return frame.reset_index(drop=True)
 
 
+def default_runs_of(runs: pd.DataFrame) -> pd.DataFrame:
+    """The default runs of the cells of an ablation's ``runs``, of the same experiment (tag ``experiment``) in the
+    store they logged to (param ``logger.tracking_uri``): what an ablation section compares its settings with.
+    Empty for default runs, or when the experiment or the store is not logged."""
+    uri = f"{PARAM_PREFIX}logger.tracking_uri"
+    if runs.empty or not {uri, "experiment", "variant"} <= set(runs) or set(runs["variant"]) == {DEFAULT_VARIANT}:
+        return pd.DataFrame()
+    default = fetch_runs(runs[uri].iloc[0], runs["experiment"].iloc[0])
+    return default[default["cell"].isin(runs["cell"])] if not default.empty else default
+
+
 def variants_of(runs: pd.DataFrame) -> dict[str, str]:
     """Variant -> its overrides ("" for default) among ``runs``: default first, then ablations by overrides."""
     if runs.empty:
