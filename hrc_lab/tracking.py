@@ -10,7 +10,9 @@ import re
 import socket
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 import requests
@@ -220,3 +222,25 @@ class SharedRunLogger(MLFlowLogger):
 
     def finalize(self, status: str = "success") -> None:
         pass
+
+
+@dataclass
+class SavedRun:
+    """A run as a script replays it: its validated config, seed and the folder of the artifacts it asked for."""
+
+    cfg: Any
+    seed: int
+    folder: Path
+
+
+def saved_run(client: MlflowClient, run_id: str, directory: str, artifacts: str = "agents") -> SavedRun:
+    """Download run ``run_id``'s resolved config and its ``artifacts`` folder (e.g. a Ch.3 run's saved agents,
+    ``agents/subtask<k>/``) into ``directory``, the config validated."""
+    from omegaconf import OmegaConf
+
+    from hrc_lab.config import register_schemas, validate_config
+
+    register_schemas()
+    cfg = validate_config(OmegaConf.load(client.download_artifacts(run_id, "config/resolved.yaml", directory)))
+    folder = Path(client.download_artifacts(run_id, artifacts, directory))
+    return SavedRun(cfg, int(client.get_run(run_id).data.params["seed"]), folder)

@@ -19,8 +19,9 @@ from mlflow.tracking import MlflowClient
 from stable_baselines3.common.noise import NormalActionNoise
 
 from hrc_lab.rl.agent import evaluate, learn_episodes, load_agent
-from hrc_lab.rl.evaluation import evaluation_env, evaluation_seed, saved_run
+from hrc_lab.rl.evaluation import evaluation_env, evaluation_seed
 from hrc_lab.rl.trainer import episodes_per_epoch, goal_env_factory, training_envs
+from hrc_lab.tracking import saved_run
 
 CONTINUED_SCENES = 777  # the continued training's scene seed: the run's seed + this (not its training scenes)
 FIRST_EPOCH = 900  # evaluation k draws the held-out scenes of evaluation_seed(FIRST_EPOCH + k), apart from the run's
@@ -42,7 +43,7 @@ def main() -> None:
         saved = saved_run(MlflowClient(args.tracking_uri), args.run_id, tmp)
         rl = saved.cfg.rl
         envs = training_envs(goal_env_factory(saved.cfg.env, rl, saved.seed + CONTINUED_SCENES, subtask=0), 1)
-        agent = load_agent(saved.agents / "subtask0", envs)
+        agent = load_agent(saved.folder / "subtask0", envs)
     n_actions = agent.action_space.shape[0]
     agent.action_noise = NormalActionNoise(np.zeros(n_actions), np.full(n_actions, args.noise))
     agent.random_eps = args.random_eps

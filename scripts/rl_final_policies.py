@@ -19,7 +19,8 @@ import torch
 from mlflow.tracking import MlflowClient
 
 from hrc_lab.rl.agent import MOVED_M, HerDDPG, run_episode
-from hrc_lab.rl.evaluation import evaluation_env, evaluation_seed, saved_run
+from hrc_lab.rl.evaluation import evaluation_env, evaluation_seed
+from hrc_lab.tracking import saved_run
 
 
 def replay(agent: HerDDPG, env, seed: int) -> dict[str, float]:
@@ -51,7 +52,7 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as tmp:
             saved = saved_run(client, run.info.run_id, tmp)
             cfg, seed = saved.cfg, saved.seed
-            for folder in sorted(saved.agents.glob("subtask*")):
+            for folder in sorted(saved.folder.glob("subtask*")):
                 subtask = int(folder.name.removeprefix("subtask"))
                 env = evaluation_env(cfg.env, cfg.rl, seed, subtask)
                 agent = HerDDPG.load(folder / "agent.zip", env=env, device="cpu")

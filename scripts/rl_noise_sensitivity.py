@@ -15,8 +15,8 @@ import torch
 from mlflow.tracking import MlflowClient
 
 from hrc_lab.rl.agent import HerDDPG
-from hrc_lab.rl.evaluation import saved_run
 from hrc_lab.rl.goal_env import make_goal_env
+from hrc_lab.tracking import saved_run
 
 SETTINGS = ((0.0, 0.0), (0.05, 0.0), (0.1, 0.0), (0.2, 0.0), (0.0, 0.1), (0.2, 0.3))  # (sigma, eps)
 SCENE_SEED = 500  # episode k resets with SCENE_SEED + k
@@ -51,7 +51,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         saved = saved_run(client, args.run_id, tmp)
         env = make_goal_env(saved.cfg.env, saved.cfg.rl, seed=saved.seed, subtask=0)
-        agent = HerDDPG.load(saved.agents / "subtask0" / "agent.zip", env=env, device="cpu")
+        agent = HerDDPG.load(saved.folder / "subtask0" / "agent.zip", env=env, device="cpu")
         print("| noise std | random-action share | success rate |\n|---|---|---|")
         for sigma, eps in SETTINGS:
             print(f"| {sigma:g} | {eps:g} | {success_rate(agent, env, sigma, eps, args.episodes):.2f} |", flush=True)
