@@ -106,17 +106,23 @@ ALL_FINAL = ("final_success_rate", "best_success_rate", "final_distance", "final
              "final_collision_rate", "mean_guidance_rate", "mean_env_steps_per_s", "mean_updates_per_s")
 
 
-def test_report_marks_metrics_that_older_runs_did_not_log():
+def test_report_marks_metrics_that_older_runs_did_not_log(monkeypatch):
     """A run from before the evaluation's grip_rate existed shows "–" in that column, and the section says why;
-    runs that logged every metric get no such line."""
+    runs that logged every metric (and a curve, for "SR, last 3 epochs") get no such line."""
     import pandas as pd
 
+    from hrc_lab.report import ch3_rl
     from hrc_lab.report.ch3_rl import curves_section
 
+    curve = pd.DataFrame({"run_id": ["a", "a"], "step": [1, 2], "value": [0.25, 0.75]})
+    monkeypatch.setattr(ch3_rl, "histories", lambda runs, metric: curve)
+
     runs = pd.DataFrame({"run_id": ["a"], "scenario": ["one_object_case1"], "seed": [0], "param.rl.lam": ["0.7"],
-                         "final_success_rate": [0.0], "final_grip_rate": [float("nan")]})
+                         "param.protocol.epochs": ["2"], "final_success_rate": [0.0],
+                         "final_grip_rate": [float("nan")]})
     text = curves_section(runs, "t", "intro", "thesis", "x.png").markdown
     assert "| –" in text and "did not log" in text
     logged = curves_section(runs.assign(**{c: [0.5] for c in ALL_FINAL}), "t", "intro", "thesis", "x.png").markdown
     assert "did not log" not in logged
+    assert "| 0.50 " in logged  # SR, last 3 epochs: the mean of the run's last (here both) epochs
 

@@ -32,8 +32,11 @@ def last_epochs_sr(runs: pd.DataFrame, history: pd.DataFrame) -> pd.Series:
     """Per run: the mean evaluation SR over each subtask's last :data:`LAST_EPOCHS` epochs, averaged over its
     subtasks (epoch ``k * epochs + e`` is epoch ``e`` of subtask ``k``; :mod:`hrc_lab.experiments.ch3_rl`). One
     epoch's 20 evaluation episodes move the SR by about ±0.1; three epochs' pooled move it less."""
-    epochs = runs.set_index("run_id")[f"{PARAM_PREFIX}protocol.epochs"].astype(int)
-    frame = history.assign(epochs=history.run_id.map(epochs))
+    column = f"{PARAM_PREFIX}protocol.epochs"
+    if column not in runs or history.empty:
+        return pd.Series(dtype=float)  # runs that logged no epochs or no curve: no value
+    epochs = pd.to_numeric(runs.set_index("run_id")[column], errors="coerce")
+    frame = history.assign(epochs=history.run_id.map(epochs)).dropna(subset=["epochs"])
     frame = frame.assign(subtask=(frame.step - 1) // frame.epochs, epoch=(frame.step - 1) % frame.epochs + 1)
     last = frame[frame.epoch > frame.epochs - LAST_EPOCHS]
     return last.groupby(["run_id", "subtask"]).value.mean().groupby("run_id").mean()
