@@ -22,7 +22,7 @@ from mlflow.exceptions import MlflowException
 from mlflow.tracking import MlflowClient
 from omegaconf import DictConfig, OmegaConf
 
-from hrc_lab.config import LoggerConfig
+from hrc_lab.config import LoggerConfig, register_schemas, validate_config
 from hrc_lab.interrupts import RunInterrupted
 from hrc_lab.processes import machine_identity, process_start
 
@@ -236,10 +236,6 @@ class SavedRun:
 def saved_run(client: MlflowClient, run_id: str, directory: str, artifacts: str = "agents") -> SavedRun:
     """Download run ``run_id``'s resolved config and its ``artifacts`` folder (e.g. a Ch.3 run's saved agents,
     ``agents/subtask<k>/``) into ``directory``, the config validated."""
-    from omegaconf import OmegaConf
-
-    from hrc_lab.config import register_schemas, validate_config
-
     register_schemas()
     cfg = validate_config(OmegaConf.load(client.download_artifacts(run_id, "config/resolved.yaml", directory)))
     folder = Path(client.download_artifacts(run_id, artifacts, directory))

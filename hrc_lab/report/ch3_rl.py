@@ -95,8 +95,8 @@ def budget_text(runs: pd.DataFrame) -> str:
     linear fall, "4 (1e-3)" when constant (runs from before the key logged none); several joined by " or "."""
     def one(run: pd.Series) -> str:
         start, final = run.get(f"{PARAM_PREFIX}rl.learning_rate"), run.get(f"{PARAM_PREFIX}rl.final_learning_rate")
-        rate = f"{float(start):g}" if start == start and start is not None else "?"
-        if final is not None and final == final and str(final) != "None":
+        rate = f"{float(start):g}" if pd.notna(start) else "?"
+        if pd.notna(final) and str(final) != "None":  # MLflow logs a null as the text "None"
             rate += f" → {float(final):g}"
         return f"{run.get(f'{PARAM_PREFIX}protocol.epochs', '?')} ({rate})"
 

@@ -21,4 +21,3 @@ def evaluation_env(env_cfg: Any, rl_cfg: Any, seed: int, subtask: int):
 def evaluation_seed(epoch: int) -> int:
     """The first scene seed of epoch ``epoch``'s evaluation (episode k: this + k)."""
     return 1000 * epoch
-
