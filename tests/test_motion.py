@@ -117,8 +117,9 @@ def package_models():
     assert pairs.x.shape[1] == 6 and set(pairs.labels) <= {0, 1, 2}
     planner = build_subgoal_planner(SubgoalConfig(steps=20), 3).fit(pairs.x, pairs.labels, pairs.subgoals,
                                                                      tiny_trainer)
-    ndp = DynamicPlanner(NDPConfig(steps=20, hidden=16), env.max_joint_step, env.base_position())
-    ndp.fit(*dynamics_pairs(demos), tiny_trainer)
+    config = NDPConfig(steps=20, hidden=16)
+    ndp = DynamicPlanner(config, env.max_joint_step, env.base_position())
+    ndp.fit(*dynamics_pairs(demos, config), tiny_trainer)
     return env, planner, ndp
 
 
@@ -145,12 +146,33 @@ def test_correction_rollout_of_a_few_steps():
     classifier = StageClassifier(ClassifierConfig(hidden=16, steps=20), 4).fit(*classifier_pairs(demos), tiny_trainer)
     planner = build_subgoal_planner(SubgoalConfig(steps=20), 4).fit(pairs.x, pairs.labels, pairs.subgoals,
                                                                      tiny_trainer)
-    ndp = DynamicPlanner(NDPConfig(steps=20, hidden=16), env.max_joint_step, env.base_position())
-    ndp.fit(*dynamics_pairs(demos), tiny_trainer)
+    config = NDPConfig(steps=20, hidden=16)
+    ndp = DynamicPlanner(config, env.max_joint_step, env.base_position())
+    ndp.fit(*dynamics_pairs(demos, config), tiny_trainer)
     out, final = run_correction(env, planner, ndp, classifier, n_subgoals=2, max_steps=2)
     assert out.steps > 0 and final.shape == (3, 3)
     assert out.failure in ("", "pick", "collision", "horizon")
     assert out.picks and set(out.picks) <= {1, 2}  # the object c(x) sent each picking stage to
+
+
+def test_path_targets_are_the_end_effector_later_in_the_same_stage():
+    """``motion.ndp.targets=path``: s is the demonstrated end effector h steps after r's step, never across a stage
+    change; with path_steps [1, 3] every step that has a same-stage successor h steps on gives one pair per h."""
+    env = make_env(ErrorCorrectionConfig(task="one_object"), seed=0)
+    demo = expert_demos(env, 1, k=2, mode="resample")[0]
+    r, s, a = dynamics_pairs([demo], NDPConfig(targets="path", path_steps=[1, 3]))
+    designed = dynamics_pairs([demo], NDPConfig())
+    labels = demo.stage_labels
+    expected = [t for h in (1, 3) for t in range(len(demo) - h) if labels[t] == labels[t + h]]
+    assert len(r) == len(s) == len(a) == len(expected) and len(designed[0]) == len(demo)
+    first = expected[0]  # h = 1
+    np.testing.assert_allclose(s[0], demo.obs["robot0_eef_pos"][first + 1])
+    np.testing.assert_allclose(r[0], demo.obs["lip_target_pos"][first])
+    np.testing.assert_allclose(a[0], demo.actions[first, :3])
+    with pytest.raises(ValueError, match="motion.ndp.targets"):
+        NDPConfig(targets="waypoints")
+    with pytest.raises(ValueError, match="motion.ndp.path_steps"):
+        NDPConfig(targets="path", path_steps=[0])
 
 
 def test_ground_truth_stage_labels_go_for_the_experts_objects_in_order():
@@ -160,8 +182,9 @@ def test_ground_truth_stage_labels_go_for_the_experts_objects_in_order():
     demos = expert_demos(env, 2, k=2, mode="resample")
     pairs = correction_pairs(demos)
     planner = build_subgoal_planner(SubgoalConfig(steps=5), 4).fit(pairs.x, pairs.labels, pairs.subgoals, tiny_trainer)
-    ndp = DynamicPlanner(NDPConfig(steps=5, hidden=16), env.max_joint_step, env.base_position())
-    ndp.fit(*dynamics_pairs(demos), tiny_trainer)
+    config = NDPConfig(steps=5, hidden=16)
+    ndp = DynamicPlanner(config, env.max_joint_step, env.base_position())
+    ndp.fit(*dynamics_pairs(demos, config), tiny_trainer)
     always_red = lambda x: np.full(len(x), 2)  # noqa: E731
     wrong, _ = run_correction(env, planner, ndp, always_red, n_subgoals=2, max_steps=2)
     right, _ = run_correction(env, planner, ndp, always_red, n_subgoals=2, max_steps=2, ground_truth_stages=True)

@@ -139,7 +139,7 @@ def fig_3_10(ctx: RunContext) -> dict[str, float]:
                                       protocol.subgoals_per_stage, protocol.segmentation_penalty,
                                       f"demos {config.cell}")
     env = ENVS.build(ENVS.derive(ctx.cfg.env, task="place"), seed=ctx.seed)
-    r, s, a = dynamics_pairs(demos)
+    r, s, a = dynamics_pairs(demos, ndp_config)
     controllers = {
         "ndp": DynamicPlanner(ndp_config, env.max_joint_step, env.base_position(), seed=ctx.seed),
         "ndp_direction": DynamicPlanner(dataclasses.replace(ndp_config, mode="direction"), env.max_joint_step,

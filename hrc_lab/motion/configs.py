@@ -15,6 +15,8 @@ STAGE_STARTS = ("demonstrated", "executed")
 STAGE_LABELS = ("classifier", "ground_truth")
 # What the Ch.3 sub-goal planner observes besides r (hrc_lab.motion.two_level.correction_input)
 PLANNER_INPUTS = ("full", "selected")
+# What the neural dynamic planner's training sub-goal s is (hrc_lab.motion.two_level.dynamics_pairs)
+NDP_TARGETS = ("designed", "path")
 # The GPR baseline's RBF length scales (hrc_lab.motion.configs.SubgoalConfig.gpr_kernel)
 GPR_KERNELS = ("ard", "isotropic")
 
@@ -28,10 +30,21 @@ class NDPConfig:
     lr: float = 1e-3
     steps: int = 6000  # gradient steps
     batch_size: int = 128
+    # What s is in a training pair (r_t, s, a_t) (hrc_lab.motion.two_level.dynamics_pairs): "designed", the
+    # waypoint the expert was heading for; "path", the demonstrated end-effector position path_steps later in the
+    # same stage (hindsight sub-goals: Ch.3's sub-goal planner proposes points of the demonstrated path, which a
+    # fixed-start task's waypoints never resemble; in the place cell the designed-target direction planner
+    # answered "stay" to the first planned sub-goal and no guided episode held the part, issue 43)
+    targets: str = "designed"
+    path_steps: list[int] = field(default_factory=lambda: [2, 4, 8])
 
     def __post_init__(self) -> None:
         if self.mode not in ("regression", "direction"):
             raise ValueError(f"motion.ndp.mode must be 'regression' or 'direction', got '{self.mode}'")
+        if self.targets not in NDP_TARGETS:
+            raise ValueError(f"motion.ndp.targets must be one of {list(NDP_TARGETS)}, got '{self.targets}'")
+        if not self.path_steps or min(self.path_steps) < 1:
+            raise ValueError(f"motion.ndp.path_steps must be a non-empty list of steps >= 1, got {self.path_steps}")
         for key in ("hidden", "lr", "steps", "batch_size"):
             if getattr(self, key) <= 0:
                 raise ValueError(f"motion.ndp.{key} must be > 0, got {getattr(self, key)}")

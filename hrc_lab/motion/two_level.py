@@ -118,14 +118,26 @@ def correction_pairs(demos, starts: tuple[str, ...] = ("demonstrated",), planner
     return SubgoalPairs(np.array(xs), np.array(labels), np.array(targets), np.array(groups), np.array(indices))
 
 
-def dynamics_pairs(demos) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def dynamics_pairs(demos, ndp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(r_t, s_t, a_t) of every demonstrated step: the lip at the commanded joints (where the expert acted from;
-    the measured lip lags a step behind, and a planner trained on it learns to stop short), the designed
-    sub-goal the expert was heading for, and its [base, shoulder, elbow] deltas (Delta = s - r, Eq. 3.5)."""
-    r = np.concatenate([d.obs["lip_target_pos"] for d in demos])
-    s = np.concatenate([d.subgoals for d in demos])
-    a = np.concatenate([d.actions[:, :3] for d in demos])
-    return r, s, a
+    the measured lip lags a step behind, and a planner trained on it learns to stop short), a sub-goal and the
+    expert's [base, shoulder, elbow] deltas (Delta = s - r, Eq. 3.5). ``ndp.targets`` (the
+    :class:`~hrc_lab.motion.configs.NDPConfig`) names s: ``designed``, the sub-goal the expert was heading for;
+    ``path``, the end effector ``h`` steps later for each ``h`` in ``ndp.path_steps`` within the same stage."""
+    if ndp.targets == "designed":
+        r = np.concatenate([d.obs["lip_target_pos"] for d in demos])
+        s = np.concatenate([d.subgoals for d in demos])
+        a = np.concatenate([d.actions[:, :3] for d in demos])
+        return r, s, a
+    rs, ss, as_ = [], [], []
+    for d in demos:
+        for h in ndp.path_steps:
+            t = np.arange(len(d) - h)
+            t = t[d.stage_labels[t] == d.stage_labels[t + h]]
+            rs.append(d.obs["lip_target_pos"][t])
+            ss.append(d.obs["robot0_eef_pos"][t + h])
+            as_.append(d.actions[t, :3])
+    return np.concatenate(rs), np.concatenate(ss), np.concatenate(as_)
 
 
 def classifier_pairs(demos) -> tuple[np.ndarray, np.ndarray]:
