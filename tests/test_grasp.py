@@ -301,6 +301,7 @@ TINY_CH6 = ["hydra.mode=RUN", "trainer.max_epochs=1", "grasp.steps=2", "grasp.de
     ("ch6/table_6_1", ["grasp=gvmrn_rf", "grasp.detector.mode=oracle", "protocol.test_images=2"]),
     ("ch6/table_6_2_single", ["protocol.object_counts=[3]", "protocol.cases=2"]),
     ("ch6/table_6_3", ["grasp=gvmrn_rf", "grasp.detector.mode=oracle", "protocol.test_images=2"]),
+    ("ch6/table_6_3", ["grasp=vmrn", "grasp.detector.mode=oracle", "protocol.test_images=2"]),
 ])
 def test_grasp_experiment_end_to_end(experiment, overrides, run_job):
     """A tiny detector and solver through render -> detect (+ context features) -> graph -> metrics -> MLflow

@@ -45,12 +45,13 @@ def test_dry_run_prints_every_step(capsys):
     assert main(["ch6", "--dry-run"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert [line.split(": ", 1)[0] for line in lines] == [
-        "[1/6] sweep ch6/table_6_1",
-        "[2/6] sweep ch6/table_6_2_single",
-        "[3/6] sweep ch6/table_6_3",
-        "[4/6] sweep ch6/table_6_2_robot",
-        "[5/6] report ch6_grasp",
-        "[6/6] report ch6_robot",
+        "[1/7] sweep ch6/table_6_1",
+        "[2/7] sweep ch6/table_6_2_single",
+        "[3/7] sweep ch6/table_6_3",
+        "[4/7] sweep ch6/fig_6_9",
+        "[5/7] sweep ch6/table_6_2_robot",
+        "[6/7] report ch6_grasp",
+        "[7/7] report ch6_robot",
     ]
 
 

@@ -1,5 +1,6 @@
 """Ch.6 protocols (Sec. 6.4): Table 6.1 (object accuracy for 1-3 requested types), the single-image row of Table 6.2
-(Algorithm 4 on scenes of 3-6 parts) and Table 6.3 (image-based accuracy on a data set in VMRD's layout). One job =
+(Algorithm 4 on scenes of 3-6 parts), Table 6.3 (image-based accuracy on a data set in VMRD's layout) and Fig. 6.9
+(the graspability's and the solutions' image-based accuracy over the number of object types). One job =
 (method, seed).
 
 Rendered scenes and the trained detector depend on ``protocol.data_seed`` only and are cached under
@@ -60,8 +61,9 @@ def random_request(rng: np.random.Generator, types: list[str], k: int | None = N
 
 def part_outcomes(solver: GraspSolver, nodes: list[SceneNodes], requests: list[set[str] | None]) -> pd.DataFrame:
     """One row per requested part: its scene (index into ``nodes``), its type, whether it was detected, whether its
-    graspability is right and whether it counts for the object accuracy (6.4.1: detected, graspability right and,
-    when it is not graspable, the decoded solution right)."""
+    graspability is right, whether it cannot be grasped (the rule's), whether it is detected with the right decoded
+    solution, and whether it counts for the object accuracy (6.4.1: detected, graspability right and, when it is not
+    graspable, the decoded solution right)."""
     graphs, kept = [], []
     for k, (n, request) in enumerate(zip(nodes, requests)):
         if request is not None:
@@ -77,10 +79,12 @@ def part_outcomes(solver: GraspSolver, nodes: list[SceneNodes], requests: list[s
             node = node_of.get(part)
             truth_grasp = bool(n.rule_graspable[part])
             grasp_ok = node is not None and reading[node].graspable == truth_grasp
-            correct = grasp_ok and (truth_grasp or reading[node].solution == n.rule_solution[part])
+            solution_ok = node is not None and reading[node].solution == n.rule_solution[part]
             rows.append({"scene": k, "type": obj.type, "detected": node is not None, "grasp_ok": grasp_ok,
-                         "correct": correct})
-    return pd.DataFrame(rows, columns=["scene", "type", "detected", "grasp_ok", "correct"])
+                         "ungraspable": not truth_grasp, "solution_ok": solution_ok,
+                         "correct": grasp_ok and (truth_grasp or solution_ok)})
+    return pd.DataFrame(rows, columns=["scene", "type", "detected", "grasp_ok", "ungraspable", "solution_ok",
+                                       "correct"])
 
 
 def object_accuracy(outcomes: pd.DataFrame) -> dict[str, float]:
@@ -119,21 +123,24 @@ def iterative_correct(spec: ClutterSpec, nodes: SceneNodes, goal_type: str, answ
 
 
 def prepare(ctx: RunContext, train: list[ClutterScene] | None = None,
-            train_blockers: list[list[list[int]]] | None = None, classes: tuple[str, ...] = PART_TYPES):
+            train_blockers: list[list[list[int]]] | None = None, classes: tuple[str, ...] = PART_TYPES,
+            detector=None, stage: str = "solver/"):
     """The detector and the solver of ``classes`` trained on ``train`` (default: the protocol's rendered training
     scenes of our part types, labelled by the rule; else a data set's scenes with their ``train_blockers``,
-    :func:`scene_nodes`, and its classes)."""
+    :func:`scene_nodes`, and its classes). ``detector``: one trained already (Fig. 6.9 reads each of its data sets
+    through the whole data set's), else trained on ``train``; ``stage``: the solver's MLflow prefix."""
     spec, protocol, cfg = ctx.cfg.env, ctx.cfg.protocol, ctx.cfg.grasp
     train = scene_set(ctx, spec, TRAIN, protocol.train_images) if train is None else train
     start = time.perf_counter()
-    detector, info = detector_for(ctx, train, classes)
-    ctx.tracker.log_metrics({f"detector_{k}": float(v) for k, v in info.items() if isinstance(v, int | float)})
+    if detector is None:
+        detector, info = detector_for(ctx, train, classes)
+        ctx.tracker.log_metrics({f"detector_{k}": float(v) for k, v in info.items() if isinstance(v, int | float)})
     solver = GRASPS.build(cfg, spec=spec, classes=classes, seed=ctx.seed)
     train_nodes = scene_nodes(spec, train, detector, cfg.detector, solver.needs_union_features, train_blockers)
     rng = ctx.rng(61)
     requests = [random_request(rng, n.labels or n.scene.types) for n in train_nodes]
     graphs = [solver.training_graph(n, r) for n, r in zip(train_nodes, requests) if r]
-    solver.fit(graphs, ctx.trainer("solver/"))
+    solver.fit(graphs, ctx.trainer(stage))
     train = object_accuracy(part_outcomes(solver, train_nodes, requests))
     train_metrics = {"train_grasp_acc": train["fit_acc"], "train_part_grasp_acc": train["grasp_acc"],
                      "train_detected": train["detected"], "prepare_s": time.perf_counter() - start}
@@ -308,14 +315,19 @@ def robot_video(ctx: RunContext, episode_of, scene: ClutterScene, spec: ClutterS
 
 
 def vmrd_root(ctx: RunContext) -> Path:
-    """``env.vmrd_root``, or the protocol's rendered scenes written in VMRD's layout (their rule blockers as each
-    part's children) under ``<paths.runs_dir>/cache/ch6/vmrd_<key>``, once for every job."""
+    """``env.vmrd_root``, or the protocol's rendered scenes written in VMRD's layout (:func:`written_vmrd`)."""
+    if ctx.cfg.env.vmrd_root is not None:
+        return Path(ctx.cfg.env.vmrd_root)
+    return written_vmrd(ctx, ctx.cfg.env.clutter())
+
+
+def written_vmrd(ctx: RunContext, spec: ClutterSpec) -> Path:
+    """The protocol's rendered scenes of ``spec`` written in VMRD's layout (their rule blockers as each part's
+    children) under ``<paths.runs_dir>/cache/ch6/vmrd_<key>``, once for every job."""
     from hrc_lab.data.vmrd import write_vmrd
     from hrc_lab.env.clutter.rule import blockers
 
-    if ctx.cfg.env.vmrd_root is not None:
-        return Path(ctx.cfg.env.vmrd_root)
-    spec, protocol = ctx.cfg.env.clutter(), ctx.cfg.protocol
+    protocol = ctx.cfg.protocol
     splits = {"trainval": scene_set(ctx, spec, TRAIN, protocol.train_images),
               "test": scene_set(ctx, spec, TEST, protocol.test_images)}
     children = {split: [blockers(spec, s) for s in scenes] for split, scenes in splits.items()}
@@ -359,6 +371,89 @@ def table_6_3(ctx: RunContext) -> dict[str, float]:
     images["objects"] = [objects[k] for k in images.scene]
     ctx.tracker.log_table(images, "images")
     ctx.tracker.log_table(outcomes, "part_outcomes")
+    return metrics
+
+
+def fewer_types(spec: ClutterSpec, k: int) -> ClutterSpec:
+    """``spec`` with only its k most numerous part types (largest ``max_counts``, ties by name): the others' counts
+    0, the object counts capped at the parts left (a alone: 3 parts)."""
+    kept = sorted((t for t, n in spec.max_counts.items() if n > 0), key=lambda t: (-spec.max_counts[t], t))[:k]
+    counts = {t: n if t in kept else 0 for t, n in spec.max_counts.items()}
+    most = min(spec.max_objects, sum(counts.values()))
+    return replace(spec, max_counts=counts, max_objects=most, min_objects=min(spec.min_objects, most))
+
+
+def type_subsets(ctx: RunContext, train: list, test: list) -> dict[int, tuple[list, list]]:
+    """Fig. 6.9's data sets, per k in ``protocol.type_counts``: (trainval, test) images of k object types. On our
+    scenes (``train``/``test`` written by :func:`vmrd_root`) the scenes of :func:`fewer_types` rendered and written
+    the same way; on ``env.vmrd_root`` its images whose objects are all of its k most frequent training classes."""
+    from hrc_lab.data.vmrd import read_vmrd
+
+    size, counts = ctx.cfg.env.image_size, ctx.cfg.protocol.type_counts
+    if ctx.cfg.env.vmrd_root is None:
+        roots = {k: written_vmrd(ctx, fewer_types(ctx.cfg.env.clutter(), k)) for k in counts}
+        return {k: (read_vmrd(root, "trainval", size), read_vmrd(root, "test", size)) for k, root in roots.items()}
+    frequency = pd.Series([t for a in train for t in a.scene.types]).value_counts()
+    ranked = sorted(frequency.index, key=lambda t: (-frequency[t], t))
+    if max(counts) > len(ranked):
+        raise ValueError(f"protocol.type_counts must be values in 1..{len(ranked)} (the classes of the training "
+                         f"images of {ctx.cfg.env.vmrd_root}), got {counts}")
+    subsets = {}
+    for k in counts:
+        kept = set(ranked[:k])
+        subsets[k] = tuple([a for a in split if set(a.scene.types) <= kept] for split in (train, test))
+        if not all(subsets[k]):
+            raise ValueError(f"protocol.type_counts: {ctx.cfg.env.vmrd_root} has no trainval or no test image whose "
+                             f"objects are all of its {k} most frequent classes {sorted(kept)}")
+    return subsets
+
+
+def component_accuracy(outcomes: pd.DataFrame, objects: list[int]) -> dict[str, float]:
+    """Fig. 6.9's image-based accuracies of the two stages (every object of every image requested):
+    ``grasp_ia``, the share of images whose every object is detected with the right graspability (the GNN's
+    classification); ``solution_ia``, over the images holding an object that cannot be grasped, the share whose every
+    such object is detected and decoded to the right solution (LSTM_Att); each also as ``<name>_n<n>`` over the
+    images of n objects (``objects[k]``: how many image k holds)."""
+    grasp = outcomes.groupby("scene").grasp_ok.all()
+    solution = outcomes[outcomes.ungraspable].groupby("scene").solution_ok.all()
+    counts = pd.Series(objects)
+    metrics = {}
+    for name, per_image in (("grasp_ia", grasp), ("solution_ia", solution)):
+        metrics[name] = float(per_image.mean()) if len(per_image) else float("nan")
+        sizes = counts.loc[per_image.index]
+        metrics |= {f"{name}_n{n}": float(per_image[sizes == n].mean()) for n in sorted(sizes.unique())}
+    metrics["solution_images"] = float(len(solution))
+    return metrics
+
+
+def fig_6_9(ctx: RunContext) -> dict[str, float]:
+    """For each k in ``protocol.type_counts``: a solver trained on the k-type data set's trainval images, read
+    through the whole data set's detector (Table 6.3's), scored on its test images (metrics ``types<k>_<name>``:
+    :func:`component_accuracy`, Table 6.3's ``ia`` and ``oa``, the training fit and the data set's sizes)."""
+    from hrc_lab.data.vmrd import read_vmrd
+
+    root, size = vmrd_root(ctx), ctx.cfg.env.image_size
+    train, test = read_vmrd(root, "trainval", size), read_vmrd(root, "test", size)
+    classes = dataset_classes(train + test)
+    detector, info = detector_for(ctx, [a.scene for a in train], classes)
+    metrics = {f"detector_{k}": float(v) for k, v in info.items() if isinstance(v, int | float)}
+    metrics |= {"classes": float(len(classes)), "written_by_hrc_lab": float(ctx.cfg.env.vmrd_root is None)}
+    rows = []
+    for k, (k_train, k_test) in type_subsets(ctx, train, test).items():
+        spec, _, _, solver, fit = prepare(ctx, [a.scene for a in k_train], [a.children for a in k_train], classes,
+                                          detector, stage=f"solver_{k}types/")
+        scenes = [a.scene for a in k_test]
+        nodes = scene_nodes(spec, scenes, detector, ctx.cfg.grasp.detector, solver.needs_union_features,
+                            [a.children for a in k_test])
+        outcomes = part_outcomes(solver, nodes, [set(s.types) for s in scenes])
+        objects = [len(s.objects) for s in scenes]
+        table = image_accuracy(outcomes, objects)
+        result = component_accuracy(outcomes, objects) | {"ia": table["ia"], "oa": table["oa"]}
+        result |= {"train_grasp_acc": fit["train_grasp_acc"], "trainval_images": float(len(k_train)),
+                   "test_images": float(len(k_test)), "objects": float(np.mean(objects))}
+        metrics |= {f"types{k}_{name}": value for name, value in result.items()}
+        rows.append({"types": k, "classes": " ".join(sorted({t for s in scenes for t in s.types})), **result})
+    ctx.tracker.log_table(pd.DataFrame(rows), "fig_6_9")
     return metrics
 
 

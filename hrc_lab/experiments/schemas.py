@@ -581,6 +581,33 @@ class Table63Protocol(ClutterScenesProtocol):
 
 
 @dataclass
+class Fig69Protocol(Table63Protocol):
+    """Fig. 6.9 (6.4.2): the image-based accuracy of the graspability classification (the GNN) and of the decoded
+    solutions (LSTM_Att) on data sets of ``type_counts`` object types. Each count k keeps the k most numerous types:
+    on our scenes the k part types with the largest ``env.max_counts`` (a, then b, then c), rendered anew with the
+    others left out; on ``env.vmrd_root`` the images whose objects are all of its k most frequent classes. The
+    detector is Table 6.3's, trained on the whole data set; a solver is trained for each k."""
+
+    type_counts: list[int] = field(default_factory=lambda: [1, 2, 3])
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        counts = self.type_counts
+        if not counts or min(counts) < 1 or len(set(counts)) != len(counts):
+            raise ValueError(f"protocol.type_counts must be distinct values >= 1, got {counts}")
+
+    def check(self, validated) -> None:
+        """On our scenes (no ``env.vmrd_root``) k is at most the number of part types ``env.max_counts`` allows
+        (a data set's classes are counted when the run reads it)."""
+        super().check(validated)
+        env = validated.env
+        present = sorted(t for t, n in env.max_counts.items() if n > 0)
+        if env.vmrd_root is None and max(self.type_counts) > len(present):
+            raise ValueError(f"protocol.type_counts must be values in 1..{len(present)} (the part types "
+                             f"env.max_counts={dict(env.max_counts)} allows), got {self.type_counts}")
+
+
+@dataclass
 class Table62SingleProtocol(Table61Protocol):
     """Algorithm 4 on one image (Table 6.2, single-image row): ``cases`` scenes of each size in ``object_counts``,
     one random requested part type each."""
@@ -658,6 +685,7 @@ CH6 = "hrc_lab.experiments.ch6_grasp"
 PROTOCOLS.register("ch6_table_6_1", Table61Protocol, f"{CH6}:table_6_1")
 PROTOCOLS.register("ch6_table_6_2_single", Table62SingleProtocol, f"{CH6}:table_6_2_single")
 PROTOCOLS.register("ch6_table_6_3", Table63Protocol, f"{CH6}:table_6_3")
+PROTOCOLS.register("ch6_fig_6_9", Fig69Protocol, f"{CH6}:fig_6_9")
 PROTOCOLS.register("ch6_table_6_2_robot", Table62RobotProtocol, f"{CH6}:table_6_2_robot")
 
 
@@ -667,7 +695,8 @@ CH4_REASONERS = REASONERS.family(REASONING_CH4)
 CH5_PLANNERS = REASONERS.family(REASONING_CH5)
 MOTION_PLANNERS = ("tc_vi", "tc_vi_indexed", "vi", "mlp", "gpr")
 ACTION_DETECTORS = ("hand_lstm_fcn", "cnn_lstm", "hand_cnn", "cnn_lstm_video")
-GRASP_SOLVERS = ("gnn_att", "gnn_att_oracle", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att", "gvmrn_rf")
+GRASP_SOLVERS = ("gnn_att", "gnn_att_oracle", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att", "gvmrn_rf",
+                 "vmrn")
 ROBOT_CELLS = ("package_to_order", "error_correction")
 GUIDED_RL = ("ddpg_her", "ddpg_her_guided")
 ACCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
@@ -698,6 +727,7 @@ ACCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
     "ch6_table_6_1": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
     "ch6_table_6_2_single": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
     "ch6_table_6_3": {"env": ("vmrd",), "grasp": GRASP_SOLVERS},
+    "ch6_fig_6_9": {"env": ("vmrd",), "grasp": GRASP_SOLVERS},
     "ch6_table_6_2_robot": {"env": ("clutter",), "grasp": GRASP_SOLVERS},
     "rl_fetch": {"env": ("fetch",), "rl": ("ddpg_her",)},
 }

@@ -3,7 +3,8 @@
 ``gnn_att`` is the thesis' method (Sec. 6.2); the baselines of 6.4.1 differ from it in one field each:
 ``gnn_att_wo_we`` (edge weights all 1), ``gnn_lstm`` (plain LSTM decoder), ``gnn_df_att`` (distance filter 0.16),
 ``gcn_att`` (GCNConv in place of the WL-GNN's GraphConv). ``gvmrn_rf`` (relation classification on union-box
-features, :mod:`hrc_lab.grasp.relation`) reads ``distance_filter``, ``hidden``, ``layers`` and the training keys.
+features, :mod:`hrc_lab.grasp.relation`) reads ``distance_filter``, ``hidden``, ``layers`` and the training keys;
+``vmrn`` (Table 6.3's pair classifier, :mod:`hrc_lab.grasp.vmrn`) reads ``hidden``, ``layers`` and the training keys.
 """
 
 from __future__ import annotations
@@ -130,3 +131,4 @@ SOLVER = "hrc_lab.grasp.solver:GraspSolver"
 for _name in ("gnn_att", "gnn_att_oracle", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att"):
     GRASPS.register(_name, GraspSolverConfig, SOLVER)
 GRASPS.register("gvmrn_rf", GraspSolverConfig, "hrc_lab.grasp.relation:RelationSolver")
+GRASPS.register("vmrn", GraspSolverConfig, "hrc_lab.grasp.vmrn:VmrnSolver")

@@ -36,6 +36,7 @@ COMMANDS = {
     "table_6_2_single": "hrc-lab experiment=ch6/table_6_2_single hydra/launcher=joblib",
     "table_6_2_robot": "hrc-lab experiment=ch6/table_6_2_robot hydra/launcher=joblib",
     "table_6_3": "hrc-lab experiment=ch6/table_6_3 hydra/launcher=joblib",
+    "fig_6_9": "hrc-lab experiment=ch6/fig_6_9 hydra/launcher=joblib",
     "collect_ch4": "hrc-lab experiment=data/collect_ch4 hydra/launcher=joblib",
     "collect_ch3": "hrc-lab experiment=data/collect_ch3 hydra/launcher=joblib",
 }

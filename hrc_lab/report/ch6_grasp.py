@@ -1,15 +1,19 @@
-"""Report sections of the Ch.6 grasp-solution experiments: Table 6.1, the single-image row of Table 6.2 and Table
-6.3 (on our scenes in VMRD's layout), with the measurements that explain them (:mod:`hrc_lab.grasp.diagnostics`):
+"""Report sections of the Ch.6 grasp-solution experiments: Table 6.1, the single-image row of Table 6.2, Table 6.3
+(on our scenes in VMRD's layout) and Fig. 6.9 (its two stages over the number of object types), with the
+measurements that explain them (:mod:`hrc_lab.grasp.diagnostics`):
 where the object accuracy is lost (detection, the solver's fit, the hardest part type), the solver's training curve,
 the scenes' geometry against GNN_DF_Att's distance filter, and the causes of Algorithm 4's wrong answers."""
 
 from __future__ import annotations
+
+import re
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from hrc_lab.grasp.diagnostics import FAILURE_CAUSES  # noqa: E402
 from hrc_lab.report.runs import (  # noqa: E402
@@ -33,6 +37,7 @@ METHODS = {
     "gnn_df_att": "GNN_DF_Att",
     "gvmrn_rf": "GVMRN_RF",
     "gcn_att": "GCN_Att",
+    "vmrn": "VMRN",
 }
 COLUMNS = [("train_grasp_acc", "Train_Acc"), ("oa_1", "one type"), ("oa_2", "two types"), ("oa_3", "three types")]
 REQUEST_SIZES = (1, 2, 3)
@@ -225,7 +230,7 @@ def table_6_2_single(runs: pd.DataFrame) -> Section:
 
 @register_section("table_6_3")
 def table_6_3(runs: pd.DataFrame) -> Section:
-    thesis = thesis_results()["ch6"]["table_6_3"]
+    thesis, facts = thesis_results()["ch6"]["table_6_3"], thesis_results()["ch6"]["text"]
     counts = sorted(int(c[len("ia_") :]) for c in runs.columns if c.startswith("ia_") and c[len("ia_") :].isdigit())
     rows, records = [], []
     for method in [m for m in METHODS if m in set(runs.method)]:
@@ -244,8 +249,12 @@ def table_6_3(runs: pd.DataFrame) -> Section:
     text = [
         "Image-based accuracy (IA, 6.4.2): a test image counts when every object in it is right: detected, its "
         "graspability right and, when it cannot be grasped, its decoded solution right (every object of the image "
-        f"is requested). Data: {source}. {over_seeds(runs, start=True)}. The thesis ran VMRD v2 "
-        f"(31 daily-life classes, up to 5 objects per image, VMRN {thesis['vmrn']}); "
+        f"is requested). Data: {source}. {over_seeds(runs, start=True)}. VMRN classifies every ordered pair of "
+        "detected objects as parent / child / none from the box features of both and of their union box "
+        "(`hrc_lab/grasp/vmrn.py`); an object with predicted children is not graspable and its solution names "
+        "their types (help when one has its own). The thesis ran VMRD v2 "
+        f"({facts['vmrd_object_types_in_test']} daily-life classes, up to {facts['vmrd_max_objects_per_image']} "
+        "objects per image); "
         + ("these machines cannot download it, so the numbers are not comparable with the thesis' column beside "
            "them: the protocol is the thesis', the data are ours." if written else
            f"these runs read {_classes(runs)} classes from the data set's annotations (the detector's classes, the "
@@ -255,12 +264,97 @@ def table_6_3(runs: pd.DataFrame) -> Section:
         markdown_table(pd.DataFrame(rows)),
     ]
     if counts:
-        most = thesis_results()["ch6"]["text"]["vmrd_max_objects_per_image"]
         text += ["", f"An image counts only when all of its objects are right, so IA falls with the object count "
-                     f"(columns): our test images hold {counts[0]}–{counts[-1]} parts, VMRD's at most {most} objects."]
+                     f"(columns): our test images hold {counts[0]}–{counts[-1]} parts, VMRD's at most "
+                     f"{facts['vmrd_max_objects_per_image']} objects."]
     return Section("Table 6.3: image-based accuracy " + ("(our scenes in VMRD's layout)" if written else
                                                         "(a data set in VMRD's layout)"), "\n".join(text),
                    pd.DataFrame(records))
+
+
+TYPES_METRIC = re.compile(r"types(\d+)_grasp_ia")  # Fig. 6.9's runs log types<k>_<name> per number of types k
+STAGES = (("grasp_ia", "GNN: graspability"), ("solution_ia", "LSTM_Att: solutions"))
+
+
+@register_section("fig_6_9")
+def fig_6_9(runs: pd.DataFrame) -> Section:
+    """Fig. 6.9: the image-based accuracy of the graspability classification and of the decoded solutions per number
+    of object types k (``types<k>_*`` metrics of :func:`hrc_lab.experiments.ch6_grasp.fig_6_9`)."""
+    counts = sorted(int(m.group(1)) for c in runs.columns if (m := TYPES_METRIC.fullmatch(c)))
+    methods = ", ".join(METHODS.get(m, m) for m in sorted(set(runs.method)))
+    rows, records = [], []
+    for k in counts:
+        row = {"object types": k, "test images": fmt(spread(runs, f"types{k}_test_images")[0], None, 0),
+               "objects per image": fmt(spread(runs, f"types{k}_objects")[0], None, 2)}
+        for stage, title in STAGES:
+            mean, std = spread(runs, f"types{k}_{stage}")
+            row[f"{title} IA"] = fmt(mean, std, 3)
+            records.append({"types": k, "stage": stage, "mean": mean, "std": std})
+        row["IA (Table 6.3's)"] = fmt(*spread(runs, f"types{k}_ia"), 3)
+        row["train graspability"] = fmt(*spread(runs, f"types{k}_train_grasp_acc"), 3)
+        rows.append(row)
+    facts = thesis_results()["ch6"]["text"]
+    text = [
+        f"{methods} trained and tested on data sets of k object types, each image's every object requested. GNN: "
+        "the share of test images whose every object is detected with the right graspability; LSTM_Att: over the "
+        "test images holding an object that cannot be grasped, the share whose every such object is detected and "
+        "decoded to the right solution. " + _type_data(runs) + f" {over_seeds(runs, start=True)}.",
+        "",
+        f"Thesis (Fig. 6.9, VMRD, up to {facts['vmrd_object_types_in_test']} types; a figure without stated values): "
+        "as the number of object types grows the GNN's accuracy \"does not decrease a lot while the LSTM_Att's "
+        "performance drops\", the decoder naming wrong objects.",
+        "",
+        markdown_table(pd.DataFrame(rows)) if rows else "(no runs)",
+        *_equal_counts(runs, counts),
+    ]
+    figures = {"fig_6_9.png": _stages_figure(pd.DataFrame(records), methods)} if records else {}
+    return Section("Fig. 6.9: graspability and solutions over the number of object types", "\n".join(text),
+                   pd.DataFrame(records), figures)
+
+
+def _type_data(runs: pd.DataFrame) -> str:
+    """Where Fig. 6.9's data sets of k types come from."""
+    written = bool(runs["written_by_hrc_lab"].min()) if "written_by_hrc_lab" in runs else True
+    if not written:
+        return (f"Data: the images of `{setting(runs, 'env.vmrd_root')}` whose objects are all of its k most frequent "
+                "training classes; one detector, trained on every image, reads them all.")
+    return ("Data: our clutter scenes with only the k part types of the largest `env.max_counts` (a, then b, then c; "
+            "the others' counts 0), rendered for each k (as many training and test scenes as Table 6.3: "
+            f"{amount(runs, 'protocol.train_images', 'trainval')}, {amount(runs, 'protocol.test_images', 'test')}) "
+            "and written in VMRD's layout; Table 6.3's detector (all three types) reads them all. Our env has three "
+            "part types, so k stops at 3, and a scene of part a alone holds 3 parts (`env.max_counts`), so k also "
+            "changes the object count (images of equal count are compared below).")
+
+
+def _equal_counts(runs: pd.DataFrame, counts: list[int]) -> list[str]:
+    """Both stages per k on the images of the one object count that every k has (``types<k>_<stage>_n<n>``)."""
+    present = [{int(c.rsplit("_n", 1)[1]) for c in runs.columns if c.startswith(f"types{k}_grasp_ia_n")}
+               for k in counts]
+    shared = sorted(set.intersection(*present)) if present else []
+    if not shared:
+        return []
+    n = shared[0]
+    rows = [{"object types": k} | {f"{title} IA": fmt(*spread(runs, f"types{k}_{stage}_n{n}"), 3)
+                                   for stage, title in STAGES} for k in counts]
+    return ["", f"On the test images of {n} objects only (a count every k has):", "",
+            markdown_table(pd.DataFrame(rows))]
+
+
+def _stages_figure(frame: pd.DataFrame, methods: str):
+    """Fig. 6.9's plot: each stage's image-based accuracy over the number of object types, mean ± std over seeds."""
+    fig, ax = plt.subplots(figsize=(5, 3.2))
+    for stage, title in STAGES:
+        part = frame[frame.stage == stage]
+        ax.errorbar(part.types, part["mean"], yerr=part["std"], marker="o", capsize=3, label=title)
+    ax.set_xlabel("object types in the data set")
+    ax.set_ylabel("image-based accuracy")
+    ax.set_ylim(0, 1.05)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_title(methods, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
 
 
 def _classes(runs: pd.DataFrame) -> str:

@@ -124,7 +124,8 @@ TOPICS = {
         "rule for a top-down grasp with a fixed gripper orientation (`hrc_lab/env/clutter/rule.py`), not a human "
         "expert; the detector is a small Faster R-CNN trained from scratch on the rendered scenes, not a "
         "pretrained ResNet-101-FPN.",
-        [("ch6/table_6_1", "table_6_1"), ("ch6/table_6_2_single", "table_6_2_single"), ("ch6/table_6_3", "table_6_3")],
+        [("ch6/table_6_1", "table_6_1"), ("ch6/table_6_2_single", "table_6_2_single"), ("ch6/table_6_3", "table_6_3"),
+         ("ch6/fig_6_9", "fig_6_9")],
     ),
     "ch6_robot": (
         "Ch.6 iterative grasping with the robot (Algorithm 4 in a robosuite clutter cell)",

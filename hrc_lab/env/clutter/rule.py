@@ -189,10 +189,16 @@ def iterative_solution(spec: ClutterSpec, scene: ClutterScene, goal: int) -> lis
 
 def blocker_solution(scene: ClutterScene, i: int, found: list[int]) -> list[str]:
     """The solution tokens of part ``i`` whose blockers are ``found`` (the rule's, or a data set's annotation)."""
-    if not found:
+    return type_solution(scene.objects[i].type, [scene.objects[j].type for j in found])
+
+
+def type_solution(own: str, blocker_types: Iterable[str]) -> list[str]:
+    """The solution tokens of an object of type ``own`` whose blockers have ``blocker_types``: grasp when there is
+    none, help when one has its own type, else move them (also what VMRN's predicted children read as)."""
+    kinds = set(blocker_types)
+    if not kinds:
         return [GRASP]
-    kinds = {scene.objects[j].type for j in found}
-    if scene.objects[i].type in kinds:
+    if own in kinds:
         return [HELP]
     return move_tokens(kinds)
 
