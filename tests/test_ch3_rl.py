@@ -126,3 +126,26 @@ def test_report_marks_metrics_that_older_runs_did_not_log(monkeypatch):
     assert "did not log" not in logged
     assert "| 0.50 " in logged  # SR, last 3 epochs: the mean of the run's last (here both) epochs
 
+
+
+def test_report_gives_each_budget_its_own_row(monkeypatch):
+    """Runs of one (experiment, lambda) trained for other epochs or Adam step sizes are never averaged together:
+    each budget gets its own row (and curve), named by its epochs and step size."""
+    import pandas as pd
+
+    from hrc_lab.report import ch3_rl
+    from hrc_lab.report.ch3_rl import curves_section
+
+    curve = pd.DataFrame({"run_id": ["a", "b", "c"], "step": [1, 1, 1], "value": [0.2, 0.4, 0.9]})
+    monkeypatch.setattr(ch3_rl, "histories", lambda runs, metric: curve)
+    runs = pd.DataFrame({"run_id": ["a", "b", "c"], "scenario": ["two_object_case1"] * 3, "seed": [0, 1, 0],
+                         "param.rl.lam": ["0.7"] * 3, "param.protocol.epochs": ["4", "4", "10"],
+                         "param.rl.learning_rate": ["0.001"] * 3,
+                         "param.rl.final_learning_rate": ["None", "None", "0.0001"],
+                         **{c: [0.2, 0.4, 0.9] for c in ALL_FINAL}})
+    section = curves_section(runs, "t", "intro", "thesis", "x.png")
+    rows = [line for line in section.markdown.splitlines() if line.startswith("| two object")]
+    assert len(rows) == 2
+    assert any("| 4 (0.001) " in r and "| 0.30 ± 0.10 " in r and "|       2 |" in r for r in rows)
+    assert any("| 10 (0.001 → 0.0001) " in r and "| 0.90 " in r for r in rows)
+    assert set(section.table.budget) == {"4 (0.001)", "10 (0.001 → 0.0001)"}

@@ -43,25 +43,31 @@ def last_epochs_sr(runs: pd.DataFrame, history: pd.DataFrame) -> pd.Series:
 
 
 def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str, png: str) -> Section:
-    """SR per epoch for every (scenario, lambda): each run light, the mean over seeds bold; the final-epoch table."""
-    runs = runs.assign(lam=lam_of(runs))
-    history = histories(runs, "success_rate").merge(runs[["run_id", "scenario", "lam", "seed"]], on="run_id")
+    """SR per epoch for every (scenario, lambda, budget): each run light, the mean over seeds bold; the final-epoch
+    table. Runs of another budget (epochs, Adam step size) get their own row and curve, never a shared mean."""
+    runs = runs.assign(lam=lam_of(runs), budget=runs.apply(run_budget, axis=1))
+    history = histories(runs, "success_rate").merge(runs[["run_id", "scenario", "lam", "budget", "seed"]],
+                                                    on="run_id")
     runs = runs.assign(last_epochs_success_rate=runs.run_id.map(last_epochs_sr(runs, history)))
     scenarios = sorted(runs.scenario.unique())
     fig, axes = plt.subplots(1, len(scenarios), figsize=(5 * len(scenarios), 3.4), squeeze=False)
     rows, csv = [], []
     for ax, scenario in zip(axes[0], scenarios):
-        for k, lam in enumerate(sorted(runs[runs.scenario == scenario].lam.unique(), key=float)):
+        arms = runs[runs.scenario == scenario][["lam", "budget"]].drop_duplicates()
+        several = arms.budget.nunique() > 1
+        for k, (lam, budget) in enumerate(sorted(arms.itertuples(index=False), key=lambda a: (float(a[0]), a[1]))):
             colour = f"C{k}"
-            part = history[(history.scenario == scenario) & (history.lam == lam)]
+            part = history[(history.scenario == scenario) & (history.lam == lam) & (history.budget == budget)]
             for _, one in part.groupby("run_id"):
                 ax.plot(one.step, one.value, color=colour, alpha=0.25, linewidth=0.8)
             mean = part.groupby("step").value.mean()
-            ax.plot(mean.index, mean.values, color=colour, linewidth=2, label=ARMS.get(lam, f"λ = {lam}"))
-            csv += [{"scenario": scenario, "lam": lam, "epoch": int(s), "sr_mean": v} for s, v in mean.items()]
-            done = runs[(runs.scenario == scenario) & (runs.lam == lam)]
+            label = ARMS.get(lam, f"λ = {lam}") + (f", {budget}" if several else "")
+            ax.plot(mean.index, mean.values, color=colour, linewidth=2, label=label)
+            csv += [{"scenario": scenario, "lam": lam, "budget": budget, "epoch": int(s), "sr_mean": v}
+                    for s, v in mean.items()]
+            done = runs[(runs.scenario == scenario) & (runs.lam == lam) & (runs.budget == budget)]
             row = {"experiment": scenario.replace("_", " "), "λ": lam, "seeds": len(done),
-                   "epochs (Adam step size)": budget_text(done)}
+                   "epochs (Adam step size)": budget}
             for metric, label in (("final_success_rate", "final SR"),
                                   ("last_epochs_success_rate", f"SR, last {LAST_EPOCHS} epochs"),
                                   ("best_success_rate", "best SR"),
@@ -90,17 +96,14 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
     return Section(title, "\n".join(text), pd.DataFrame(csv), {png: fig})
 
 
-def budget_text(runs: pd.DataFrame) -> str:
-    """The runs' epochs per subtask and Adam step size, e.g. "10 (1e-3 → 1e-4)" for ``rl.final_learning_rate``'s
-    linear fall, "4 (1e-3)" when constant (runs from before the key logged none); several joined by " or "."""
-    def one(run: pd.Series) -> str:
-        start, final = run.get(f"{PARAM_PREFIX}rl.learning_rate"), run.get(f"{PARAM_PREFIX}rl.final_learning_rate")
-        rate = f"{float(start):g}" if pd.notna(start) else "?"
-        if pd.notna(final) and str(final) != "None":  # MLflow logs a null as the text "None"
-            rate += f" → {float(final):g}"
-        return f"{run.get(f'{PARAM_PREFIX}protocol.epochs', '?')} ({rate})"
-
-    return " or ".join(sorted({one(run) for _, run in runs.iterrows()}))
+def run_budget(run: pd.Series) -> str:
+    """A run's epochs per subtask and Adam step size, e.g. "10 (0.001 → 0.0001)" for ``rl.final_learning_rate``'s
+    linear fall, "4 (0.001)" when constant (runs from before the key logged none)."""
+    start, final = run.get(f"{PARAM_PREFIX}rl.learning_rate"), run.get(f"{PARAM_PREFIX}rl.final_learning_rate")
+    rate = f"{float(start):g}" if pd.notna(start) else "?"
+    if pd.notna(final) and str(final) != "None":  # MLflow logs a null as the text "None"
+        rate += f" → {float(final):g}"
+    return f"{run.get(f'{PARAM_PREFIX}protocol.epochs', '?')} ({rate})"
 
 
 def net_arch(runs: pd.DataFrame) -> str:
