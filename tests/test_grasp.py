@@ -12,14 +12,14 @@ from torch_geometric.loader import DataLoader
 
 from hrc_lab.config import validate_config
 from hrc_lab.env.clutter.rule import solution_types
-from hrc_lab.env.clutter.spec import PART_TYPES, ClutterObject, ClutterScene
+from hrc_lab.env.clutter.spec import PART_TYPES, ClutterObject, ClutterScene, ClutterSpec
 from hrc_lab.experiments.ch6_grasp import object_accuracy
 from hrc_lab.grasp import GRASPS
-from hrc_lab.grasp.configs import GraspSolverConfig
+from hrc_lab.grasp.configs import DetectorConfig, GraspSolverConfig
 from hrc_lab.grasp.diagnostics import failure_cause, scene_geometry
 from hrc_lab.grasp.graph import edge_weights, fully_connected, scene_graph
 from hrc_lab.grasp.iterative import IterativeAnswer, iterate, nearest_of_types
-from hrc_lab.grasp.observation import SceneNodes
+from hrc_lab.grasp.observation import SceneNodes, height_grids, scene_nodes
 from hrc_lab.grasp.relation import RELATIONS, RelationSolver, relation_filter, relation_label
 from hrc_lab.grasp.solver import GraspSolverModule, GraspSolverNet, NodeReading, SolutionVocabulary
 from hrc_lab.registry import ConfigError
@@ -77,7 +77,7 @@ def test_a_data_sets_classes_make_the_vocabulary_and_the_label_one_hot():
         scene_graph(torch.ones(1, 3), ["cup"], np.array([[0, 0, 9, 9]]), 64, np.array([True]), classes)
 
 
-@pytest.mark.parametrize("decoder", ["lstm_att", "lstm"])
+@pytest.mark.parametrize("decoder", ["lstm_att", "lstm", "transformer"])
 def test_decoder_learns_a_tiny_vocabulary(decoder):
     """Two graph kinds, told apart by the label of node 0, must decode to two different solutions."""
     torch.manual_seed(0)
@@ -154,6 +154,28 @@ def test_algorithm_4_stops_at_grasp_max_iterations():
     assert answer.grasp is None and not answer.help
 
 
+def test_height_grids_show_a_covering_part_inside_the_covered_box():
+    """A 20 px box on a 100 px depth image: the table at the camera's height below, a 2.5 cm part over the box's
+    right half; the 2 x 2 grid reads 0 on the left and 0.5 (2.5 cm in 5 cm units) on the right."""
+    spec = ClutterSpec()
+    depth = np.full((100, 100), spec.camera_height, dtype=np.float32)
+    depth[:, 30:] = spec.camera_height - 0.025
+    grids = height_grids(spec, depth, np.array([[10, 10, 50, 30], [60, 60, 60.2, 60.4]]), 2)
+    assert grids[0].tolist() == pytest.approx([0.0, 0.5, 0.0, 0.5], abs=1e-5)
+    assert grids[1].tolist() == pytest.approx([0.5] * 4, abs=1e-5)  # a box thinner than a pixel still reads one pixel
+
+
+def test_depth_features_need_depth_images():
+    nodes = _nodes(["a"], [[10, 10, 20, 20]], [[]])
+    detector = SimpleNamespace(features_for_boxes=lambda images, boxes: [torch.zeros(len(b), 4) for b in boxes])
+    reading = DetectorConfig(mode="oracle", context_scale=0)
+    with pytest.raises(ValueError, match=r"grasp.depth_grid=2 reads depth images, but 1 scene\(s\) have none"):
+        scene_nodes(ClutterSpec(), [nodes.scene], detector, reading, depth_grid=2)
+    nodes.scene.depth = np.full((100, 100), 0.5, dtype=np.float32)
+    (seen,) = scene_nodes(ClutterSpec(), [nodes.scene], detector, reading, depth_grid=2)
+    assert seen.features.shape == (1, 4 + 2 * 2)
+
+
 def test_config_errors_name_the_key():
     with pytest.raises(ConfigError, match="grasp.edges"):
         GRASPS.validate(OmegaConf.create({"name": "gnn_att", "edges": "euclid"}))
@@ -161,6 +183,11 @@ def test_config_errors_name_the_key():
         GRASPS.validate(OmegaConf.create({"name": "gnn_attention"}))
     with pytest.raises(ConfigError, match=r"grasp.max_iterations must be >= 1, got 0"):
         GRASPS.validate(OmegaConf.create({"name": "gnn_att", "max_iterations": 0}))
+    with pytest.raises(ConfigError, match=r"grasp.depth_grid must be >= 0"):
+        GRASPS.validate(OmegaConf.create({"name": "gnn_att_depth", "depth_grid": -1}))
+    with pytest.raises(ConfigError, match=r"grasp.transformer_heads=3 must divide grasp.lstm_hidden=64"):
+        GRASPS.validate(OmegaConf.create({"name": "gnn_transformer", "decoder": "transformer",
+                                          "transformer_heads": 3}))
 
 
 def test_grasp_max_iterations_reaches_the_config(compose_config):
@@ -299,6 +326,8 @@ TINY_CH6 = ["hydra.mode=RUN", "trainer.max_epochs=1", "grasp.steps=2", "grasp.de
 @pytest.mark.parametrize("experiment,overrides", [
     ("ch6/table_6_1", ["grasp=gnn_att", "protocol.test_images=2"]),
     ("ch6/table_6_1", ["grasp=gvmrn_rf", "grasp.detector.mode=oracle", "protocol.test_images=2"]),
+    ("ch6/table_6_1", ["grasp=gnn_att_depth", "grasp.decoder=transformer", "grasp.detector.mode=oracle",
+                       "protocol.test_images=2"]),
     ("ch6/table_6_2_single", ["protocol.object_counts=[3]", "protocol.cases=2"]),
     ("ch6/table_6_3", ["grasp=gvmrn_rf", "grasp.detector.mode=oracle", "protocol.test_images=2"]),
     ("ch6/table_6_3", ["grasp=vmrn", "grasp.detector.mode=oracle", "protocol.test_images=2"]),

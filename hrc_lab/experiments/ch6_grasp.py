@@ -34,10 +34,10 @@ TRAIN, TEST, ITERATIVE = 1, 2, 3  # scene-seed streams
 
 
 def scene_set(ctx: RunContext, spec: ClutterSpec, stream: int, count: int) -> list[ClutterScene]:
-    from hrc_lab.env.clutter.scenes import generate_scenes, load_scenes, save_scenes
+    from hrc_lab.env.clutter.scenes import SCENE_FORMAT, generate_scenes, load_scenes, save_scenes
 
     seeds = [ctx.cfg.protocol.data_seed * 1_000_000 + stream * 100_000 + i for i in range(count)]
-    key = cache_key([asdict(spec), seeds[0], count])
+    key = cache_key([asdict(spec), seeds[0], count, SCENE_FORMAT])
     path = Path(ctx.cfg.paths.runs_dir) / "cache" / "ch6" / f"scenes_{key}.npz"
     return load_scenes(cached(path, lambda p: save_scenes(p, generate_scenes(spec, seeds, progress=True))))
 
@@ -49,6 +49,14 @@ def detector_for(ctx: RunContext, train_scenes: list[ClutterScene], classes: tup
     key = detector_cache_key(cfg, classes, [s.seed for s in train_scenes])
     cache_dir = Path(ctx.cfg.paths.runs_dir) / "cache" / "ch6"
     return load_or_train_detector(cfg, classes, train_scenes, lambda: ctx.trainer("detector/"), cache_dir, key)
+
+
+def observe(spec: ClutterSpec, scenes: list[ClutterScene], detector, cfg, solver,
+            annotated_blockers: list[list[list[int]]] | None = None) -> list[SceneNodes]:
+    """What ``solver`` sees of ``scenes``: :func:`scene_nodes` with the run's grasp config ``cfg`` (its detector
+    reading and depth features) and the solver's need for union-box features."""
+    return scene_nodes(spec, scenes, detector, cfg.detector, solver.needs_union_features, annotated_blockers,
+                       cfg.depth_grid)
 
 
 def random_request(rng: np.random.Generator, types: list[str], k: int | None = None) -> set[str] | None:
@@ -136,7 +144,7 @@ def prepare(ctx: RunContext, train: list[ClutterScene] | None = None,
         detector, info = detector_for(ctx, train, classes)
         ctx.tracker.log_metrics({f"detector_{k}": float(v) for k, v in info.items() if isinstance(v, int | float)})
     solver = GRASPS.build(cfg, spec=spec, classes=classes, seed=ctx.seed)
-    train_nodes = scene_nodes(spec, train, detector, cfg.detector, solver.needs_union_features, train_blockers)
+    train_nodes = observe(spec, train, detector, cfg, solver, train_blockers)
     rng = ctx.rng(61)
     requests = [random_request(rng, n.labels or n.scene.types) for n in train_nodes]
     graphs = [solver.training_graph(n, r) for n, r in zip(train_nodes, requests) if r]
@@ -159,7 +167,7 @@ def detector_metrics(ctx: RunContext, detector, scenes: list[ClutterScene]) -> d
 def table_6_1(ctx: RunContext) -> dict[str, float]:
     spec, protocol, detector, solver, metrics = prepare(ctx)
     test_scenes = scene_set(ctx, spec, TEST, protocol.test_images)
-    test = scene_nodes(spec, test_scenes, detector, ctx.cfg.grasp.detector, solver.needs_union_features)
+    test = observe(spec, test_scenes, detector, ctx.cfg.grasp, solver)
     rng = ctx.rng(62)
     metrics |= detector_metrics(ctx, detector, test_scenes)
     rows, every = [], []
@@ -187,7 +195,7 @@ def table_6_2_single(ctx: RunContext) -> dict[str, float]:
     for count in protocol.object_counts:
         fixed = replace(spec, min_objects=count, max_objects=count)
         scenes = scene_set(ctx, fixed, ITERATIVE * 10 + count, protocol.cases)
-        nodes = scene_nodes(fixed, scenes, detector, ctx.cfg.grasp.detector, solver.needs_union_features)
+        nodes = observe(fixed, scenes, detector, ctx.cfg.grasp, solver)
         outcomes, causes = [], []
         for n in tqdm(nodes, desc=f"Algorithm 4, {count} objects", unit="scene"):
             goal_type = str(rng.choice(sorted(set(n.scene.types))))
@@ -242,7 +250,7 @@ def table_6_2_robot(ctx: RunContext) -> dict[str, float]:
     def episode_of(cell, scene, fixed, goal, on_decision=None):
         return run_episode(
             cell, scene, fixed, goal,
-            perceive=lambda now: scene_nodes(fixed, [now], detector, cfg.detector, solver.needs_union_features)[0],
+            perceive=lambda now: observe(fixed, [now], detector, cfg, solver)[0],
             read=lambda nodes, mask: solver.read([solver.graph(nodes, mask)])[0],
             max_requests=cfg.max_iterations, max_grasps=protocol.max_grasps,
             answer_right=lambda nodes, goal, answer: iterative_correct(fixed, nodes, goal, answer),
@@ -359,8 +367,7 @@ def table_6_3(ctx: RunContext) -> dict[str, float]:
     classes = dataset_classes(train + test)
     spec, _, detector, solver, metrics = prepare(ctx, [a.scene for a in train], [a.children for a in train], classes)
     test_scenes = [a.scene for a in test]
-    nodes = scene_nodes(spec, test_scenes, detector, ctx.cfg.grasp.detector, solver.needs_union_features,
-                        [a.children for a in test])
+    nodes = observe(spec, test_scenes, detector, ctx.cfg.grasp, solver, [a.children for a in test])
     outcomes = part_outcomes(solver, nodes, [set(s.types) for s in test_scenes])  # every object of every image
     objects = [len(s.objects) for s in test_scenes]
     metrics |= image_accuracy(outcomes, objects) | detector_metrics(ctx, detector, test_scenes)
@@ -443,8 +450,7 @@ def fig_6_9(ctx: RunContext) -> dict[str, float]:
         spec, _, _, solver, fit = prepare(ctx, [a.scene for a in k_train], [a.children for a in k_train], classes,
                                           detector, stage=f"solver_{k}types/")
         scenes = [a.scene for a in k_test]
-        nodes = scene_nodes(spec, scenes, detector, ctx.cfg.grasp.detector, solver.needs_union_features,
-                            [a.children for a in k_test])
+        nodes = observe(spec, scenes, detector, ctx.cfg.grasp, solver, [a.children for a in k_test])
         outcomes = part_outcomes(solver, nodes, [set(s.types) for s in scenes])
         objects = [len(s.objects) for s in scenes]
         table = image_accuracy(outcomes, objects)

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 from hrc_lab.env.fetch import FETCH_ENV_IDS
 from hrc_lab.env.robot.settings import CELL_CAMERA
+from hrc_lab.grasp.configs import GRASPS
 from hrc_lab.motion.configs import PLANNER_INPUTS, STAGE_LABELS, STAGE_STARTS
 from hrc_lab.reasoning.configs import CH4 as REASONING_CH4
 from hrc_lab.reasoning.configs import CH5 as REASONING_CH5
@@ -695,8 +696,7 @@ CH4_REASONERS = REASONERS.family(REASONING_CH4)
 CH5_PLANNERS = REASONERS.family(REASONING_CH5)
 MOTION_PLANNERS = ("tc_vi", "tc_vi_indexed", "vi", "mlp", "gpr")
 ACTION_DETECTORS = ("hand_lstm_fcn", "cnn_lstm", "hand_cnn", "cnn_lstm_video")
-GRASP_SOLVERS = ("gnn_att", "gnn_att_oracle", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att", "gvmrn_rf",
-                 "vmrn")
+GRASP_SOLVERS = tuple(GRASPS.names())
 ROBOT_CELLS = ("package_to_order", "error_correction")
 GUIDED_RL = ("ddpg_her", "ddpg_her_guided")
 ACCEPTS: dict[str, dict[str, tuple[str, ...]]] = {

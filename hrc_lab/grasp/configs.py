@@ -2,7 +2,9 @@
 
 ``gnn_att`` is the thesis' method (Sec. 6.2); the baselines of 6.4.1 differ from it in one field each:
 ``gnn_att_wo_we`` (edge weights all 1), ``gnn_lstm`` (plain LSTM decoder), ``gnn_df_att`` (distance filter 0.16),
-``gcn_att`` (GCNConv in place of the WL-GNN's GraphConv). ``gvmrn_rf`` (relation classification on union-box
+``gcn_att`` (GCNConv in place of the WL-GNN's GraphConv). ``gnn_att_depth`` (★, the thesis' future work) adds the
+depth image's heights to the node features (``depth_grid``); ``gnn_transformer`` (★, the thesis' future work)
+decodes the solutions with a Transformer (``decoder``). ``gvmrn_rf`` (relation classification on union-box
 features, :mod:`hrc_lab.grasp.relation`) reads ``distance_filter``, ``hidden``, ``layers`` and the training keys;
 ``vmrn`` (Table 6.3's pair classifier, :mod:`hrc_lab.grasp.vmrn`) reads ``hidden``, ``layers`` and the training keys.
 """
@@ -20,7 +22,7 @@ LEVELS = ("0", "1", "2")  # detector FPN levels at strides 4, 8, 16
 DETECTOR_MODES = ("trained", "oracle")
 EDGE_MODES = ("inverse_distance", "ones", "distance_filter")
 CONVS = ("graph", "gcn")
-DECODERS = ("lstm_att", "lstm")
+DECODERS = ("lstm_att", "lstm", "transformer")
 
 
 @dataclass
@@ -98,10 +100,14 @@ class GraspSolverConfig:
     conv: str = "graph"  # "graph": WL-GNN (PyG GraphConv, Eq. 6.2); "gcn": GCNConv
     hidden: int = 128
     layers: int = 3
-    decoder: str = "lstm_att"  # "lstm_att": LSTM with attention over segments of f' (Eq. 6.4-6.6); "lstm": plain
+    # "lstm_att": LSTM with attention over segments of f' (Eq. 6.4-6.6); "lstm": plain; "transformer" (★, the thesis'
+    # future work): Transformer decoder layers over the segments as memory (hrc_lab.grasp.transformer_decoder)
+    decoder: str = "lstm_att"
     segments: int = 8  # attention segments of the decoder input f'
     word_dim: int = 16
-    lstm_hidden: int = 64
+    lstm_hidden: int = 64  # the decoder's width: the LSTM's hidden size, or the Transformer's d_model
+    transformer_layers: int = 2  # decoder=transformer only
+    transformer_heads: int = 4  # decoder=transformer only; must divide lstm_hidden
     lr: float = 1e-3
     # learning rate: "constant" or "cosine" (warm-up over warmup_steps, decay to 0). Cosine over 3,000 steps
     # fits every training node (issue 20, reports/ch6_grasp.md, 3 seeds: Train_Acc 0.985 -> 1.000, test OA
@@ -111,13 +117,17 @@ class GraspSolverConfig:
     batch_size: int = 32
     steps: int = 3000  # gradient steps in all, split over trainer.max_epochs (batches sampled with replacement)
     max_iterations: int = 6  # Algorithm 4: most requests (graspability check + decoded solution) on one image
+    # > 0: each node's features are followed by the depth image's heights max-pooled over a depth_grid x depth_grid
+    # partition of its box (hrc_lab.grasp.observation.height_grids; the thesis' future work, 6.5). 0: off, the thesis
+    depth_grid: int = 0
     detector: DetectorConfig = field(default_factory=DetectorConfig)
 
     def __post_init__(self) -> None:
         for key, allowed in (("edges", EDGE_MODES), ("conv", CONVS), ("decoder", DECODERS), ("schedule", LR_SCHEDULES)):
             if getattr(self, key) not in allowed:
                 raise ValueError(f"grasp.{key} must be one of {allowed}, got '{getattr(self, key)}'")
-        for key in ("distance_filter", "hidden", "layers", "segments", "word_dim", "lstm_hidden", "lr"):
+        for key in ("distance_filter", "hidden", "layers", "segments", "word_dim", "lstm_hidden", "lr",
+                    "transformer_layers", "transformer_heads"):
             if getattr(self, key) <= 0:
                 raise ValueError(f"grasp.{key} must be > 0, got {getattr(self, key)}")
         for key in ("batch_size", "steps", "max_iterations"):
@@ -125,10 +135,16 @@ class GraspSolverConfig:
                 raise ValueError(f"grasp.{key} must be >= 1, got {getattr(self, key)}")
         if self.warmup_steps < 0:
             raise ValueError(f"grasp.warmup_steps must be >= 0, got {self.warmup_steps}")
+        if self.decoder == "transformer" and self.lstm_hidden % self.transformer_heads:
+            raise ValueError(f"grasp.transformer_heads={self.transformer_heads} must divide grasp.lstm_hidden="
+                             f"{self.lstm_hidden} (the Transformer's width)")
+        if self.depth_grid < 0:
+            raise ValueError(f"grasp.depth_grid must be >= 0 (0: no depth features), got {self.depth_grid}")
 
 
 SOLVER = "hrc_lab.grasp.solver:GraspSolver"
-for _name in ("gnn_att", "gnn_att_oracle", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att"):
+for _name in ("gnn_att", "gnn_att_oracle", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att", "gnn_att_depth",
+              "gnn_transformer"):
     GRASPS.register(_name, GraspSolverConfig, SOLVER)
 GRASPS.register("gvmrn_rf", GraspSolverConfig, "hrc_lab.grasp.relation:RelationSolver")
 GRASPS.register("vmrn", GraspSolverConfig, "hrc_lab.grasp.vmrn:VmrnSolver")

@@ -49,13 +49,33 @@ def enlarged_boxes(boxes: np.ndarray, scale: float, image_size: int) -> np.ndarr
     return np.clip(np.hstack([centre - half, centre + half]), 0, image_size).astype(np.float32)
 
 
+HEIGHT_UNIT = 0.05  # m: heights above the table enter the depth features in this unit (about a part's size)
+
+
+def height_grids(spec: ClutterSpec, depth: np.ndarray, boxes: np.ndarray, grid: int) -> torch.Tensor:
+    """(n, grid * grid) depth features of (n, 4) px boxes: the height above the table (``spec.camera_height`` minus
+    the depth, in :data:`HEIGHT_UNIT`) max-pooled over a grid x grid partition of each box. A part that another
+    one covers shows the other's height inside its own box, which the image alone leaves to shading (★ the
+    thesis' future work, 6.5: "utilize depth images")."""
+    heights = torch.as_tensor((spec.camera_height - np.asarray(depth, dtype=np.float32)) / HEIGHT_UNIT)
+    size_y, size_x = heights.shape
+    grids = []
+    for x0, y0, x1, y1 in np.asarray(boxes, dtype=float).reshape(-1, 4):
+        c0, r0 = min(int(np.floor(x0)), size_x - 1), min(int(np.floor(y0)), size_y - 1)
+        c1, r1 = max(int(np.ceil(x1)), c0 + 1), max(int(np.ceil(y1)), r0 + 1)
+        crop = heights[r0:r1, c0:c1][None, None]
+        grids.append(torch.nn.functional.adaptive_max_pool2d(crop, grid).flatten())
+    return torch.stack(grids) if grids else torch.zeros(0, grid * grid)
+
+
 def scene_nodes(
     spec: ClutterSpec, scenes: list[ClutterScene], detector, reading: DetectorConfig, union_features: bool = False,
-    annotated_blockers: list[list[list[int]]] | None = None,
+    annotated_blockers: list[list[list[int]]] | None = None, depth_grid: int = 0,
 ) -> list[SceneNodes]:
     """Detections (``reading.mode`` trained) or ground-truth boxes (``oracle``) with box-head features, matched to
     parts; with ``reading.context_scale`` > 1 each f_i is followed by the feature of its box enlarged by that
-    factor; with ``union_features`` also the feature of every pair's union box (GVMRN_RF). The ground truth is the
+    factor; with ``depth_grid`` > 0 by its :func:`height_grids` from the scene's depth image; with
+    ``union_features`` also the feature of every pair's union box (GVMRN_RF). The ground truth is the
     rule's (:mod:`hrc_lab.env.clutter.rule`), or with ``annotated_blockers`` (per scene, per part, the parts to move
     first: a data set's annotation, :mod:`hrc_lab.data.vmrd`) derived from those as the rule derives it from its
     own: graspable when there is none, the solution from their types."""
@@ -71,6 +91,14 @@ def scene_nodes(
             images, [enlarged_boxes(d.boxes, reading.context_scale, size) for d in found])
         found = [replace(d, features=torch.cat([torch.as_tensor(d.features).float(), c.float()], dim=-1))
                  for d, c in zip(found, context)]
+    if depth_grid:
+        missing = [s.seed for s in scenes if s.depth is None]
+        if missing:
+            raise ValueError(f"grasp.depth_grid={depth_grid} reads depth images, but {len(missing)} scene(s) have "
+                             f"none (e.g. seed {missing[0]}; a data set's RGB images have no depth): use 0")
+        found = [replace(d, features=torch.cat([torch.as_tensor(d.features).float(),
+                                                height_grids(spec, s.depth, d.boxes, depth_grid)], dim=-1))
+                 for d, s in zip(found, scenes)]
     unions = None
     if union_features:
         pairs = [list(combinations(range(len(d.labels)), 2)) for d in found]

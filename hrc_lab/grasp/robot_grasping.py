@@ -72,7 +72,6 @@ def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[o
     for _ in range(max_grasps):
         start = time.perf_counter()
         now, _ = cell.current_scene(scene.seed)
-        _, _, depth = cell.image()
         rendered = time.perf_counter()
         nodes = perceive(now)
         detected = time.perf_counter()
@@ -101,7 +100,7 @@ def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[o
             return RobotEpisode(goal, steps, answer.help and right, "" if answer.help and right else step.cause
                                 or "other")
         before = cell.part_poses()[0]
-        outcome = cell.pick(cell.locate(nodes.boxes[answer.grasp], depth))
+        outcome = cell.pick(cell.locate(nodes.boxes[answer.grasp], now.depth))
         moved = np.linalg.norm(cell.part_poses()[0] - before, axis=1)
         step.disturbed = int(sum(moved[j] > DISTURBED for j in outcome.touched))
         if outcome.held is None:

@@ -11,6 +11,7 @@ f' is projected into ``segments`` segments f'_s; at each step the score h_t^T W_
 over the segments (Eq. 6.5) and the weighted sum of the segments is the context (Eq. 6.6), the LSTM's input beside
 the embedding of the previous word (the ground truth in training, the greedy choice at test, starting from
 <start>). The plain ``lstm`` decoder feeds f' itself at every step. Both start from a state computed from f'.
+★ ``transformer`` decodes with Transformer layers instead (:mod:`hrc_lab.grasp.transformer_decoder`).
 The thesis trains the decoder on the trained node embeddings; here the two losses are summed and trained in one
 run, with P_gra detached in the decoder input.
 """
@@ -101,6 +102,16 @@ class AttentionLSTMDecoder(nn.Module):
         return torch.stack(out, dim=1)
 
 
+def solution_decoder(feature_dim: int, vocab: SolutionVocabulary, cfg: GraspSolverConfig) -> nn.Module:
+    """The decoder ``grasp.decoder`` names: LSTM_Att or the plain LSTM, or ★ a Transformer
+    (:mod:`hrc_lab.grasp.transformer_decoder`)."""
+    if cfg.decoder == "transformer":
+        from hrc_lab.grasp.transformer_decoder import TransformerSolutionDecoder
+
+        return TransformerSolutionDecoder(feature_dim, vocab, cfg)
+    return AttentionLSTMDecoder(feature_dim, vocab, cfg)
+
+
 class GraspSolverNet(nn.Module):
     def __init__(self, node_dim: int, n_classes: int, vocab: SolutionVocabulary, cfg: GraspSolverConfig) -> None:
         super().__init__()
@@ -113,7 +124,7 @@ class GraspSolverNet(nn.Module):
         )
         self.convs = nn.ModuleList(conv() for _ in range(cfg.layers))
         self.grasp_head = nn.Linear(cfg.hidden, 1)
-        self.decoder = AttentionLSTMDecoder(cfg.hidden + n_classes + 1, vocab, cfg)
+        self.decoder = solution_decoder(cfg.hidden + n_classes + 1, vocab, cfg)
 
     def encode(self, batch) -> tuple[torch.Tensor, torch.Tensor]:
         """Node embeddings Gamma (Eq. 6.2) and graspability logits (Eq. 6.3)."""

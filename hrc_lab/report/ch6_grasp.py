@@ -38,6 +38,8 @@ METHODS = {
     "gvmrn_rf": "GVMRN_RF",
     "gcn_att": "GCN_Att",
     "vmrn": "VMRN",
+    "gnn_att_depth": "★ GNN_Att + depth (beyond the thesis)",
+    "gnn_transformer": "★ GNN_Transformer (beyond the thesis)",
 }
 COLUMNS = [("train_grasp_acc", "Train_Acc"), ("oa_1", "one type"), ("oa_2", "two types"), ("oa_3", "three types")]
 REQUEST_SIZES = (1, 2, 3)

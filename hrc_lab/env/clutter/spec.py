@@ -145,7 +145,8 @@ class ClutterObject:
 
 @dataclass
 class ClutterScene:
-    """A rendered scene: the image, its parts and, per pixel, which part is seen (-1: table)."""
+    """A rendered scene: the image, its parts, per pixel which part is seen (-1: table) and, from the same camera, the
+    depth (None for an image without a depth camera, e.g. a VMRD data set's)."""
 
     seed: int
     image: np.ndarray  # (H, W, 3) uint8, top-down
@@ -153,6 +154,7 @@ class ClutterScene:
     segmentation: np.ndarray  # (H, W) int, index into ``objects`` or -1
     # resting[i][j]: part j lies on part i (from the settled contacts)
     resting: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=bool))
+    depth: np.ndarray | None = None  # (H, W) float, m along the optical axis
 
     @property
     def types(self) -> list[str]:

@@ -170,10 +170,11 @@ class ClutterCell(ManipulationEnv):
     def current_scene(self, seed: int) -> tuple[ClutterScene, list[int]]:
         """The scene as the camera sees it now, with the data the rule reads (poses, visible boxes, which part rests
         on which from the contact forces, as :mod:`hrc_lab.env.clutter.scenes` reads them), and the indices (into
-        the placed scene's objects) of the parts in it: those the camera sees at all."""
+        the placed scene's objects) of the parts in it: those the camera sees at all. The scene carries the camera's
+        depth image."""
         from hrc_lab.env.clutter.spec import ClutterObject
 
-        image, segmentation, _ = self.image()
+        image, segmentation, depth = self.image()
         positions, quaternions = self.part_poses()
         shown = [i for i in range(len(self.active)) if (segmentation == i).any()]
         objects, remap = [], np.full(len(self.active) + 1, -1, dtype=np.int8)
@@ -182,7 +183,7 @@ class ClutterCell(ManipulationEnv):
             box = np.array([cols.min(), rows.min(), cols.max() + 1, rows.max() + 1], dtype=np.float32)
             objects.append(ClutterObject(self.object_type(i), positions[i], quaternions[i], box))
             remap[i] = k
-        scene = ClutterScene(seed, image, objects, remap[segmentation], self._resting(shown))
+        scene = ClutterScene(seed, image, objects, remap[segmentation], self._resting(shown), depth=depth)
         return scene, shown
 
     def locate(self, box: np.ndarray, depth: np.ndarray) -> np.ndarray:
