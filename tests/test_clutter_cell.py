@@ -67,7 +67,8 @@ def test_the_gripper_picks_an_isolated_part_of_each_type(part_type):
     try:
         cell.place_scene(scene)
         _, _, depth = cell.image()
-        outcome = cell.pick(cell.locate(scene.objects[0].box, depth))
+        box = scene.objects[0].box
+        outcome = cell.pick(cell.locate(box, depth), cell.grasp_opening(box, depth))  # pre-shaped, as the robot row
         assert outcome.held == 0 and outcome.touched == []
         assert cell.part_poses()[0][0, 2] > scene.objects[0].position[2] + 0.05  # lifted with the gripper
         cell.put(TRAY, outcome.held)
@@ -75,6 +76,22 @@ def test_the_gripper_picks_an_isolated_part_of_each_type(part_type):
         assert np.linalg.norm(position[:2] - TRAY) < 0.02 and position[2] < SPEC.part_size[part_type][2]
     finally:
         cell.close()
+
+
+def test_the_pre_grasp_opening_is_the_parts_extent_plus_the_rules_gap(cell):
+    """The measured finger openings fall from ~6 cm (open) to below 2 cm (closed); an isolated part a's pre-grasp
+    half opening is half its x-extent plus the rule's finger gap and the margin (within 5 mm)."""
+    from hrc_lab.env.robot.clutter_cell import PRESHAPE_MARGIN
+
+    commands, halves = cell.finger_openings()
+    assert commands[0] == -1 and commands[-1] == 1
+    assert halves[0] > 0.055 and halves[-1] < 0.02 and (np.diff(halves) < 0.002).all()  # (about) monotone
+    scene = generate_scene(SINGLE, ONE_PART_SEEDS["a"])
+    cell.place_scene(scene, SINGLE)
+    _, _, depth = cell.image()
+    corners = part_corners(SPEC, scene.objects[0])
+    expected = np.ptp(corners[:, 0]) / 2 + SPEC.finger_gap + PRESHAPE_MARGIN
+    assert cell.grasp_opening(scene.objects[0].box, depth) == pytest.approx(expected, abs=0.005)
 
 
 def oracle_nodes(now):

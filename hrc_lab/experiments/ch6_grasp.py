@@ -254,7 +254,7 @@ def table_6_2_robot(ctx: RunContext) -> dict[str, float]:
             read=lambda nodes, mask: solver.read([solver.graph(nodes, mask)])[0],
             max_requests=cfg.max_iterations, max_grasps=protocol.max_grasps,
             answer_right=lambda nodes, goal, answer: iterative_correct(fixed, nodes, goal, answer),
-            on_decision=on_decision,
+            on_decision=on_decision, preshape=protocol.preshape,
         )
 
     episodes, steps, shown = [], [], None

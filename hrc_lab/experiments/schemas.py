@@ -642,6 +642,9 @@ class Table62RobotProtocol(Table62SingleProtocol):
 
     max_grasps: int = 6
     video_objects: int = 5  # a video of the first successful episode with this many parts (0: none)
+    # open the fingers only to the named part's x-extent plus the rule's finger gap (and 5 mm), as the rule and the
+    # thesis' 2F-85 have them; false: the 2F-140 fully open, its pads ~6 cm either side of the grasp point
+    preshape: bool = True
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -60,12 +60,14 @@ class RobotEpisode:
 def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[object], SceneNodes],
                 read: Callable[[SceneNodes, np.ndarray], list[NodeReading]], max_requests: int,
                 max_grasps: int, answer_right: Callable,
-                on_decision: Callable[[RobotStep], None] | None = None) -> RobotEpisode:
+                on_decision: Callable[[RobotStep], None] | None = None, preshape: bool = True) -> RobotEpisode:
     """Algorithm 4 with the robot on ``scene`` (rendered from ``spec``) for the requested type ``goal``.
     ``perceive(scene_now)`` detects and matches (the trained detector,
     :func:`~hrc_lab.grasp.observation.scene_nodes`); ``read(nodes, mask)`` is the solver's reading of every node for
     a request; ``answer_right(nodes, goal, answer)`` scores a single-image answer against the rule;
-    ``on_decision(step)`` sees each iteration's decision before the robot acts on it (a video's caption)."""
+    ``on_decision(step)`` sees each iteration's decision before the robot acts on it (a video's caption);
+    ``preshape``: open the fingers only as wide as the named part needs (:meth:`ClutterCell.grasp_opening`), else
+    fully."""
     cell.place_scene(scene, spec)
     steps: list[RobotStep] = []
     aside = 0
@@ -100,7 +102,8 @@ def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[o
             return RobotEpisode(goal, steps, answer.help and right, "" if answer.help and right else step.cause
                                 or "other")
         before = cell.part_poses()[0]
-        outcome = cell.pick(cell.locate(nodes.boxes[answer.grasp], now.depth))
+        box = nodes.boxes[answer.grasp]
+        outcome = cell.pick(cell.locate(box, now.depth), cell.grasp_opening(box, now.depth) if preshape else None)
         moved = np.linalg.norm(cell.part_poses()[0] - before, axis=1)
         step.disturbed = int(sum(moved[j] > DISTURBED for j in outcome.touched))
         if outcome.held is None:

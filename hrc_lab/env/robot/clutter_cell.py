@@ -16,7 +16,12 @@ part at every yaw and closes to about 19 mm.
   image is taken (it is not drawn). :meth:`ClutterCell.locate` turns a detected box into a 3-D grasp point from
   the depth image and the camera model (no orientation: the thesis' depth camera).
 - **Grasp** (the rule's, Sec. 6.3): top down, the fingers closing along the world x axis (the wrist is turned a
-  quarter turn from robosuite's UR5e default), the finger tips ``grasp_depth`` below the part's top. The arm moves
+  quarter turn from robosuite's UR5e default), the finger tips ``grasp_depth`` below the part's top. Fully open,
+  the 2F-140's pads stand about 6 cm either side of the grasp point, where the rule (and the thesis' 2F-85) has the
+  fingers just outside the part, so they come down on neighbours the rule calls clear. With a pre-grasp opening
+  (:meth:`ClutterCell.grasp_opening`) the fingers open only to the part's x-extent, seen in the depth image, plus
+  the rule's ``finger_gap`` and :data:`PRESHAPE_MARGIN` on each side (the gripper's finger command set from a
+  measured table of openings, :meth:`ClutterCell.finger_openings`). The arm moves
   by robosuite's OSC_POSE controller (delta input), driven to each waypoint by a proportional law that also holds
   the gripper's orientation. :meth:`ClutterCell.pick` reports which part rose with the gripper and which other
   parts the gripper touched; :meth:`ClutterCell.put` sets the held part down at a point and opens.
@@ -64,6 +69,8 @@ WAYPOINT_TOLERANCE = 0.004  # m
 MAX_WAYPOINT_STEPS = 120
 LIFTED = 0.03  # m a part must rise with the gripper to count as held
 TURN_WRIST = np.pi / 2  # from robosuite's UR5e home, so the fingers close along world x
+OPENING_LEVELS = 11  # finger commands measured between open (-1) and closed (1) for the pre-grasp opening
+PRESHAPE_MARGIN = 0.005  # m per side beyond the rule's finger gap: the box centre's error as the part's centre
 
 
 @dataclass
@@ -86,6 +93,7 @@ class ClutterCell(ManipulationEnv):
         self.active: list[int] = []
         self.camera: SceneCamera | None = None
         self.on_step: Callable[[], None] | None = None  # called after every control step the cell takes
+        self._openings: tuple[np.ndarray, np.ndarray] | None = None  # finger_openings(), measured once
         super().__init__(
             robots="UR5e",
             gripper_types=GRIPPER,
@@ -100,6 +108,8 @@ class ClutterCell(ManipulationEnv):
             hard_reset=False,
             seed=seed,
         )
+        self.finger_openings()
+        self.reset()
 
     # --- model ------------------------------------------------------------------------------------------------
 
@@ -129,6 +139,7 @@ class ClutterCell(ManipulationEnv):
         self._part_geoms = [{model.geom_name2id(g) for g in p.contact_geoms} for p in self.parts]
         self._gripper_geoms = {model.geom_name2id(g) for g in self.robots[0].gripper["right"].contact_geoms}
         self._eef_site = self.robots[0].eef_site_id["right"]
+        self._pads = [model.geom_name2id(n) for n in model.geom_names if n and n.endswith("fingerpad_collision")]
         self._base_body = model.body_name2id(self.robots[0].robot_model.root_body)
 
     def _reset_internal(self) -> None:
@@ -197,16 +208,50 @@ class ClutterCell(ManipulationEnv):
 
     # --- motion -----------------------------------------------------------------------------------------------
 
-    def pick(self, point: np.ndarray) -> PickOutcome:
-        """Open, come down on ``point`` (scene frame, the part's top) from above, close, lift; from the observation
-        pose and back to it with the part."""
+    def grasp_opening(self, box: np.ndarray, depth: np.ndarray) -> float:
+        """The pre-grasp half opening (m, grasp point to each pad's inner face) for a detected box: half the part's
+        x-extent (the box's width in pixels at the depth of the part's top, :meth:`locate`) plus the rule's
+        ``finger_gap`` and :data:`PRESHAPE_MARGIN`."""
+        x0, y0, x1, y1 = np.asarray(box, dtype=float)
+        top = self.locate(box, depth)
+        depth_top = self.spec.camera_height - top[2]
+        ends = self.spec.unproject(np.array([[x0, (y0 + y1) / 2], [x1, (y0 + y1) / 2]]), np.full(2, depth_top))
+        return float(abs(ends[1, 0] - ends[0, 0]) / 2 + self.spec.finger_gap + PRESHAPE_MARGIN)
+
+    def finger_openings(self) -> tuple[np.ndarray, np.ndarray]:
+        """(commands, half openings): the gripper's finger command (-1 open ... 1 closed) and the half distance
+        between the pads' inner faces it holds, measured at the observation pose over :data:`OPENING_LEVELS`
+        commands when the cell is built (then reset, so every :meth:`place_scene` starts from the same state)."""
+        if self._openings is None:
+            commands = np.linspace(-1.0, 1.0, OPENING_LEVELS)
+            halves = []
+            for command in commands:
+                self._hold(OBSERVE, grip=-1.0, steps=GRIP_STEPS // 2)
+                self._set_finger_command(command)
+                self._hold(OBSERVE, grip=0.0, steps=GRIP_STEPS)
+                halves.append(self._pad_half_opening())
+            self._hold(OBSERVE, grip=-1.0, steps=GRIP_STEPS // 2)
+            self._openings = (commands, np.asarray(halves))
+        return self._openings
+
+    def pick(self, point: np.ndarray, half_opening: float | None = None) -> PickOutcome:
+        """Open (fully, or with ``half_opening`` to the command whose measured half opening is the smallest at least
+        that wide, :meth:`finger_openings`), come down on ``point`` (scene frame, the part's top) from above, close,
+        lift; from the observation pose and back to it with the part."""
+        open_grip = -1.0
+        if half_opening is not None:
+            commands, halves = self.finger_openings()
+            wide_enough = commands[halves >= half_opening]
+            if len(wide_enough):
+                self._set_finger_command(float(wide_enough.max()))
+                open_grip = 0.0  # hold the command
         start = self.timestep
         point = np.asarray(point, dtype=float)
         before = self.part_poses()[0][:, 2]
         touched: set[int] = set()
         grasp = point + [0, 0, self._tip_below_site - self.spec.grasp_depth]  # the finger tips grasp_depth below
-        self._hold(grasp + [0, 0, APPROACH], grip=-1.0)
-        self._hold(grasp, grip=-1.0, touched=touched)
+        self._hold(grasp + [0, 0, APPROACH], grip=open_grip)
+        self._hold(grasp, grip=open_grip, touched=touched)
         self._hold(grasp, grip=1.0, steps=GRIP_STEPS, touched=touched)
         self._hold(np.array([*point[:2], LIFT]), grip=1.0)
         rose = self.part_poses()[0][:, 2] - before
@@ -246,6 +291,18 @@ class ClutterCell(ManipulationEnv):
                 self.on_step()
             if touched is not None:
                 touched.update(self._gripper_contacts())
+
+    def _set_finger_command(self, command: float) -> None:
+        """Set the gripper's finger command (robosuite's Robotiq140Gripper keeps it in ``current_action`` and moves it
+        by 0.2 per step towards the sign of the grip action; a grip action of 0 holds it)."""
+        self.robots[0].gripper["right"].current_action = np.array([command, -command])
+
+    def _pad_half_opening(self) -> float:
+        """Half the distance between the inner faces of the two finger pads, m."""
+        model, data = self.sim.model, self.sim.data
+        centres = [data.geom_xpos[g] for g in self._pads]
+        thickness = [float(np.min(model.geom_size[g])) for g in self._pads]  # the pads are thin boxes
+        return float(np.linalg.norm(centres[0][:2] - centres[1][:2]) / 2 - np.mean(thickness))
 
     def _orientation_error(self) -> np.ndarray:
         """Axis-angle (world frame) that turns the gripper's current orientation into its home one."""
