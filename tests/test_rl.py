@@ -27,6 +27,7 @@ from hrc_lab.rl.agent import (
     add_demonstrations,
     build_ddpg_her,
     build_guided_ddpg_her,
+    ddpg_her_kwargs,
     evaluate,
     learn_episodes,
     load_agent,
@@ -113,6 +114,21 @@ def test_compute_reward_is_eq_3_6_on_batches_and_single_goals(env):
     np.testing.assert_array_equal(env.compute_reward(achieved[:, :4].reshape(8, 8, 4), desired[:, :4].reshape(8, 8, 4),
                                                      {}), sparse_reward(achieved[:, :4], desired[:, :4],
                                                                         env.delta_r, 4).reshape(8, 8))
+
+
+def test_with_collision_fails_a_transition_after_a_collision_earns_minus_one(env):
+    """rl.collision_fails: HER's relabelled rewards read each transition's info (so the buffer keeps the infos)."""
+    goals = np.zeros((3, 4), dtype=np.float32)
+    infos = [{"collided": True}, {"collided": False}, {}]
+    np.testing.assert_array_equal(env.compute_reward(goals, goals, infos), [0.0, 0.0, 0.0])  # Eq. 3.6: off
+    env.collision_fails = True
+    try:
+        np.testing.assert_array_equal(env.compute_reward(goals, goals, infos), [-1.0, 0.0, 0.0])
+        assert float(env.compute_reward(goals[0], goals[0], {"collided": True})) == -1.0
+    finally:
+        env.collision_fails = False
+    assert ddpg_her_kwargs(RLConfig(**TINY, collision_fails=True), env, 0)["replay_buffer_kwargs"]["copy_info_dict"]
+    assert not ddpg_her_kwargs(RLConfig(**TINY), env, 0)["replay_buffer_kwargs"]["copy_info_dict"]
 
 
 def test_goal_env_goal_is_the_labelled_objects_pose_and_the_step_reward_agrees(env):

@@ -75,7 +75,9 @@ def ddpg_her_kwargs(cfg: RLConfig, env: gym.Env | VecEnv, seed: int) -> dict[str
         "action_noise": NormalActionNoise(np.zeros(n_actions), np.full(n_actions, cfg.action_noise_std)),
         "replay_buffer_class": FilledHerReplayBuffer,
         "replay_buffer_kwargs": {"n_sampled_goal": cfg.n_sampled_goal,
-                                 "goal_selection_strategy": cfg.goal_selection_strategy},
+                                 "goal_selection_strategy": cfg.goal_selection_strategy,
+                                 # HER's relabelled rewards read the transitions' infos (rl.collision_fails)
+                                 "copy_info_dict": cfg.collision_fails},
         "policy_kwargs": policy_kwargs(cfg),
         "action_l2": cfg.action_l2,
         "random_eps": cfg.random_eps,

@@ -54,6 +54,10 @@ class RLConfig:
     # its allowed supports (the table, or the part it stacks on), so the support, not the cup, sets its final height;
     # off until the lip has left it, then on again (it can be picked again). never: the cup holds it to the end
     release: str = "support"
+    # hrc_lab's, not in Eq. 3.6: after a collision every reward of the episode is -1, in the agent's own transitions
+    # and in HER's relabelled ones (the reward reads the transition's info; Eq. 3.7 counts a trial with a collision
+    # as failed, but Eq. 3.6's reward does not see it, so nothing taught the agent to avoid one). false: Eq. 3.6
+    collision_fails: bool = False
     # --- DDPG (HER paper: Adam 1e-3, 3 x 256 ReLU layers, batch 256, gamma 0.98, polyak 0.95, 20 % Gaussian noise) ---
     learning_rate: float = 1e-3
     # Adam's step size (actor and critic) falls linearly from learning_rate at the first epoch to this at the run's

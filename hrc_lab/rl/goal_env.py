@@ -123,7 +123,8 @@ class HRCGoalEnv(gym.Env):
     def __init__(self, cell: HRCCell, subtask: int | None = 0, steps_per_subtask: int = 40,
                  delta_r: float | None = None, disable_effector_on_collision: bool = True,
                  cases: tuple[int, ...] = (), suction: str = "action", start: str = "scene",
-                 yaw_symmetry: int = 4, wrist3: str = "relative", release: str = "support") -> None:
+                 yaw_symmetry: int = 4, wrist3: str = "relative", release: str = "support",
+                 collision_fails: bool = False) -> None:
         if not isinstance(cell, ErrorCorrection | PackageToOrder):
             raise TypeError(f"HRCGoalEnv wraps ErrorCorrection or PackageToOrder cells, got {type(cell).__name__}")
         if steps_per_subtask < 1:
@@ -149,6 +150,7 @@ class HRCGoalEnv(gym.Env):
         self.yaw_symmetry = int(yaw_symmetry)
         self.wrist3_relative = wrist3 == "relative"
         self.release_on_support = release == "support" and suction == "auto"
+        self.collision_fails = collision_fails
         self.yaw_orders = np.zeros(0, dtype=int)
         self._cup_off = False  # rl.release=support: the cup released a part and stays off until the lip left it
         self._grip, self._grip_z, self._lifted = -1, 0.0, False
@@ -198,8 +200,8 @@ class HRCGoalEnv(gym.Env):
             self._release_on_support(rest_z)
         self.elapsed_steps += 1
         obs = self._obs()
-        reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], {}))
         collided = bool(self.cell.collisions)
+        reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], {"collided": collided}))
         success = reward == 0.0 and not collided
         info = {
             "is_success": success,
@@ -215,8 +217,15 @@ class HRCGoalEnv(gym.Env):
 
     def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
         """Eq. 3.6 / 4.7 (:func:`sparse_reward`) on one goal or a batch, yaw errors under the goal objects'
-        symmetry (``yaw_orders``); ``info`` is unused."""
-        return sparse_reward(achieved_goal, desired_goal, self.delta_r, self.dims_per_object, self._yaw_orders())
+        symmetry (``yaw_orders``); with ``rl.collision_fails`` -1 where the transition's ``info`` (a dict, or one per
+        goal of a batch, as stable-baselines3's HER buffer passes them) says the episode ``collided``."""
+        reward = sparse_reward(achieved_goal, desired_goal, self.delta_r, self.dims_per_object, self._yaw_orders())
+        if not self.collision_fails:
+            return reward
+        if isinstance(info, dict):
+            return np.float32(-1.0) if info.get("collided", False) else reward
+        collided = np.array([bool(i.get("collided", False)) for i in info]).reshape(reward.shape)
+        return np.where(collided, np.float32(-1.0), reward)
 
     def close(self) -> None:
         self.cell.close()
@@ -397,6 +406,7 @@ def make_goal_env(env_cfg: Any, rl_cfg: Any, seed: int | None = None, subtask: i
 
 
 def task_switches(rl_cfg: Any) -> dict[str, Any]:
-    """The ``rl`` config's ``yaw_symmetry``, ``wrist3`` and ``release`` as :class:`HRCGoalEnv` keywords (an env
-    built without a config gets the defaults, the faithful reading of 3.3)."""
-    return {"yaw_symmetry": rl_cfg.yaw_symmetry, "wrist3": rl_cfg.wrist3, "release": rl_cfg.release}
+    """The ``rl`` config's ``yaw_symmetry``, ``wrist3``, ``release`` and ``collision_fails`` as :class:`HRCGoalEnv`
+    keywords (an env built without a config gets the defaults, the faithful reading of 3.3)."""
+    return {"yaw_symmetry": rl_cfg.yaw_symmetry, "wrist3": rl_cfg.wrist3, "release": rl_cfg.release,
+            "collision_fails": rl_cfg.collision_fails}
