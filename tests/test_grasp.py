@@ -19,7 +19,7 @@ from hrc_lab.grasp.configs import DetectorConfig, GraspSolverConfig
 from hrc_lab.grasp.diagnostics import failure_cause, scene_geometry
 from hrc_lab.grasp.graph import edge_weights, fully_connected, scene_graph
 from hrc_lab.grasp.iterative import IterativeAnswer, iterate, nearest_of_types
-from hrc_lab.grasp.observation import SceneNodes, height_grids, scene_nodes
+from hrc_lab.grasp.observation import HEIGHT_UNIT, SceneNodes, finger_clearances, height_grids, scene_nodes
 from hrc_lab.grasp.relation import RELATIONS, RelationSolver, relation_filter, relation_label
 from hrc_lab.grasp.solver import GraspSolverModule, GraspSolverNet, NodeReading, SolutionVocabulary
 from hrc_lab.registry import ConfigError
@@ -161,8 +161,27 @@ def test_height_grids_show_a_covering_part_inside_the_covered_box():
     depth = np.full((100, 100), spec.camera_height, dtype=np.float32)
     depth[:, 30:] = spec.camera_height - 0.025
     grids = height_grids(spec, depth, np.array([[10, 10, 50, 30], [60, 60, 60.2, 60.4]]), 2)
-    assert grids[0].tolist() == pytest.approx([0.0, 0.5, 0.0, 0.5], abs=1e-5)
-    assert grids[1].tolist() == pytest.approx([0.5] * 4, abs=1e-5)  # a box thinner than a pixel still reads one pixel
+    assert grids.shape == (2, 2 * 2 + 2)
+    assert grids[0, :4].tolist() == pytest.approx([0.0, 0.5, 0.0, 0.5], abs=1e-5)
+    assert grids[1, :4].tolist() == pytest.approx([0.5] * 4, abs=1e-5)  # a box thinner than a pixel reads one pixel
+
+
+def test_finger_clearances_see_a_neighbour_in_the_rules_finger_volume():
+    """A 2 cm tall part in box [40, 40, 60, 60] of a 160 px image (the finger volume: ~1.7-6.3 px beside the box,
+    ~3.5 px either side of its centre row); a 3 cm neighbour at columns 62-64 reaches 1.8 cm above the tips on the
+    right (tips 0.8 cm below the top); the table on the left is 1.2 cm below them. Moved out to columns 70-72 (beyond
+    the finger), the right side is clear too."""
+    spec = ClutterSpec()
+    depth = np.full((160, 160), spec.camera_height, dtype=np.float32)
+    depth[40:60, 40:60] = spec.camera_height - 0.02
+    near = depth.copy()
+    near[45:55, 62:65] = spec.camera_height - 0.03
+    left, right = finger_clearances(spec, (spec.camera_height - near) / HEIGHT_UNIT, np.array([40, 40, 60, 60]))
+    assert left == pytest.approx(-0.012 / HEIGHT_UNIT, abs=1e-4)
+    assert right == pytest.approx(0.018 / HEIGHT_UNIT, abs=1e-4)
+    far = depth.copy()
+    far[45:55, 70:73] = spec.camera_height - 0.03
+    assert finger_clearances(spec, (spec.camera_height - far) / HEIGHT_UNIT, np.array([40, 40, 60, 60]))[1] < 0
 
 
 def test_depth_features_need_depth_images():
@@ -173,7 +192,7 @@ def test_depth_features_need_depth_images():
         scene_nodes(ClutterSpec(), [nodes.scene], detector, reading, depth_grid=2)
     nodes.scene.depth = np.full((100, 100), 0.5, dtype=np.float32)
     (seen,) = scene_nodes(ClutterSpec(), [nodes.scene], detector, reading, depth_grid=2)
-    assert seen.features.shape == (1, 4 + 2 * 2)
+    assert seen.features.shape == (1, 4 + 2 * 2 + 2)
 
 
 def test_config_errors_name_the_key():

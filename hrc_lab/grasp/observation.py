@@ -53,19 +53,47 @@ HEIGHT_UNIT = 0.05  # m: heights above the table enter the depth features in thi
 
 
 def height_grids(spec: ClutterSpec, depth: np.ndarray, boxes: np.ndarray, grid: int) -> torch.Tensor:
-    """(n, grid * grid) depth features of (n, 4) px boxes: the height above the table (``spec.camera_height`` minus
-    the depth, in :data:`HEIGHT_UNIT`) max-pooled over a grid x grid partition of each box. A part that another
-    one covers shows the other's height inside its own box, which the image alone leaves to shading (★ the
+    """(n, grid * grid + 2) depth features of (n, 4) px boxes, heights above the table (``spec.camera_height`` minus
+    the depth) in :data:`HEIGHT_UNIT`: the heights max-pooled over a grid x grid partition of each box (a part that
+    another one covers shows the other's height inside its own box), then, for the rule's two finger volumes
+    beside the box (:func:`finger_clearances`), how far the highest point in each rises above the finger tips (★ the
     thesis' future work, 6.5: "utilize depth images")."""
-    heights = torch.as_tensor((spec.camera_height - np.asarray(depth, dtype=np.float32)) / HEIGHT_UNIT)
+    heights = (spec.camera_height - np.asarray(depth, dtype=np.float32)) / HEIGHT_UNIT
     size_y, size_x = heights.shape
-    grids = []
-    for x0, y0, x1, y1 in np.asarray(boxes, dtype=float).reshape(-1, 4):
+    features = []
+    for box in np.asarray(boxes, dtype=float).reshape(-1, 4):
+        x0, y0, x1, y1 = box
         c0, r0 = min(int(np.floor(x0)), size_x - 1), min(int(np.floor(y0)), size_y - 1)
         c1, r1 = max(int(np.ceil(x1)), c0 + 1), max(int(np.ceil(y1)), r0 + 1)
-        crop = heights[r0:r1, c0:c1][None, None]
-        grids.append(torch.nn.functional.adaptive_max_pool2d(crop, grid).flatten())
-    return torch.stack(grids) if grids else torch.zeros(0, grid * grid)
+        crop = torch.as_tensor(heights[r0:r1, c0:c1])[None, None]
+        pooled = torch.nn.functional.adaptive_max_pool2d(crop, grid).flatten()
+        features.append(torch.cat([pooled, torch.as_tensor(finger_clearances(spec, heights, box))]))
+    return torch.stack(features) if features else torch.zeros(0, grid * grid + 2)
+
+
+def finger_clearances(spec: ClutterSpec, heights: np.ndarray, box: np.ndarray) -> np.ndarray:
+    """(2,) for the left and right finger volumes of the rule (:func:`hrc_lab.env.clutter.rule.finger_boxes`:
+    ``finger_thickness`` beyond ``finger_gap`` either side of the box in x, ``finger_width`` about its centre in y),
+    the highest point seen in each minus the finger tips' height (``grasp_depth`` below the part's top, the median
+    height of the box's central third), in :data:`HEIGHT_UNIT`; > 0: something there reaches above the tips."""
+    x0, y0, x1, y1 = np.asarray(box, dtype=float)
+    size_y, size_x = heights.shape
+    cx, cy, w, h = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 6, (y1 - y0) / 6
+    centre = heights[int(np.floor(cy - h)):max(int(np.ceil(cy + h)), int(np.floor(cy - h)) + 1),
+                     int(np.floor(cx - w)):max(int(np.ceil(cx + w)), int(np.floor(cx - w)) + 1)]
+    top = float(np.median(centre)) if centre.size else 0.0
+    scale = spec.image_size / 2 / (spec.view_half_width / spec.camera_height)
+    px_per_m = scale / max(spec.camera_height - top * HEIGHT_UNIT, 1e-3)
+    gap, reach = spec.finger_gap * px_per_m, (spec.finger_gap + spec.finger_thickness) * px_per_m
+    half_width = max(spec.finger_width / 2 * px_per_m, 0.5)
+    rows = slice(max(int(np.floor(cy - half_width)), 0), min(int(np.ceil(cy + half_width)), size_y))
+    tips = top - spec.grasp_depth / HEIGHT_UNIT
+    clearances = []
+    for start, stop in ((x0 - reach, x0 - gap), (x1 + gap, x1 + reach)):
+        cols = slice(max(int(np.floor(start)), 0), min(int(np.ceil(stop)), size_x))
+        strip = heights[rows, cols]
+        clearances.append((float(strip.max()) if strip.size else 0.0) - tips)
+    return np.asarray(clearances, dtype=np.float32)
 
 
 def scene_nodes(
