@@ -7,7 +7,8 @@ from __future__ import annotations
 import pandas as pd
 
 from hrc_lab.grasp.diagnostics import ROBOT_FAILURES
-from hrc_lab.report.runs import amount, over_seeds, spread
+from hrc_lab.report.ch6_grasp import METHODS
+from hrc_lab.report.runs import NOT_LOGGED, amount, over_seeds, setting, spread
 from hrc_lab.report.sections import Section, register_section
 from hrc_lab.report.thesis import fmt, markdown_table, thesis_results, thesis_value
 
@@ -19,11 +20,22 @@ ROBOT_FAILURES_TEXT = (
 )
 
 
+def _opening(runs: pd.DataFrame) -> str:
+    """How the runs' fingers open before a grasp (``protocol.preshape``)."""
+    value = setting(runs, "protocol.preshape")
+    if value == NOT_LOGGED:
+        return "the fingers fully open (runs before `protocol.preshape`)"
+    if value.lower() == "true":
+        return ("the fingers opened only to the part's width plus the rule's finger gap and 5 mm "
+                "(`protocol.preshape`; fully open, the 2F-140's pads stand ~6 cm either side)")
+    return "the fingers fully open (`protocol.preshape=false`)" if value.lower() == "false" else f"preshape {value}"
+
+
 @register_section("table_6_2_robot")
 def table_6_2_robot(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch6"]["table_6_2"]
     counts = sorted(int(c[len("acc_") :]) for c in runs.columns if c.startswith("acc_"))
-    row = {"row": "robot grasping (ours, GNN_Att)"}
+    row = {"row": f"robot grasping ({', '.join(METHODS.get(m, m) for m in sorted(set(runs.method)))})"}
     records = []
     for count in counts:
         mean, std = spread(runs, f"acc_{count}")
@@ -44,7 +56,8 @@ def table_6_2_robot(runs: pd.DataFrame) -> Section:
         f"({amount(runs, 'protocol.cases', 'scenes')} per part count, the same seeds and draws) placed in the "
         "robosuite cell (UR5e, Robotiq 2F-140; `hrc_lab/env/robot/clutter_cell.py`). Each iteration images the "
         "scene, detects, reads the graph until the single-image answer, and grasps the part it names at the 3-D "
-        "point of its box (depth image + camera model): a part of the requested type goes to the tray and the "
+        f"point of its box (depth image + camera model), {_opening(runs)}: a part of the requested type goes to the "
+        "tray and the "
         "episode succeeds; another part is put aside and the scene imaged again. An episode that ends in help "
         "succeeds when the rule's own Algorithm 4 also ends in help. "
         f"{over_seeds(runs, start=True)}; thesis (real UR10, 10 cases per count) in brackets; the single-image row "
