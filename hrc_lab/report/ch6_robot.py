@@ -35,7 +35,9 @@ def _opening(runs: pd.DataFrame) -> str:
 def table_6_2_robot(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch6"]["table_6_2"]
     counts = sorted(int(c[len("acc_") :]) for c in runs.columns if c.startswith("acc_"))
-    row = {"row": f"robot grasping ({', '.join(METHODS.get(m, m) for m in sorted(set(runs.method)))})"}
+    methods = sorted(set(runs.method)) if "method" in runs else ["gnn_att"]
+    named = "ours, GNN_Att" if methods == ["gnn_att"] else ", ".join(METHODS.get(m, m) for m in methods)
+    row = {"row": f"robot grasping ({named})"}
     records = []
     for count in counts:
         mean, std = spread(runs, f"acc_{count}")
