@@ -68,13 +68,17 @@ class TorchReasoner(Reasoner):
     @abstractmethod
     def encode(self, obs: StageObservation) -> Data: ...
 
+    def training_observations(self, observations: list[StageObservation]) -> list[StageObservation]:
+        """What :meth:`fit` trains on: the expert observations themselves unless a method augments them."""
+        return observations
+
     def fit(self, observations: list[StageObservation], trainer: pl.Trainer | None) -> None:
         from hrc_lab.reasoning.module import ReasoningModule
         from hrc_lab.training import FixedStepDataModule, steps_per_epoch
 
         if trainer is None:
             raise ValueError(f"{type(self).__name__} is trained by Lightning and needs a trainer")
-        samples = [self.encode(o) for o in observations]
+        samples = [self.encode(o) for o in self.training_observations(observations)]
         data = FixedStepDataModule(samples, self.cfg.batch_size, steps_per_epoch(self.cfg.steps, trainer))
         trainer.fit(ReasoningModule(self.network, lr=self.cfg.lr), datamodule=data)
 

@@ -11,6 +11,10 @@ of :mod:`hrc_lab.reasoning.two_stage` maps [P_o, g_selected] to P_g; both are tr
 Ablations (``reasoning.edges``, ``reasoning.readout``; see :class:`ChainSAGEConfig`): the edge set, and a
 permutation-equivariant readout that is hrc_lab's, not the thesis': each product node scores itself, the packaging
 area is scored from G, and P_o is the softmax over these m+1 scores (absent products get none).
+
+``reasoning=hrc`` (:class:`HRCReasoner`, hrc_lab's reasoning module) is this network with a pointer readout (the
+packaging area scored by the node that scores it highest, :class:`PointerEncoder`), a choice of the aggregation of
+Eq. 4.1 (``reasoning.aggr``) and training on identity-augmented observations (:mod:`hrc_lab.reasoning.augment`).
 """
 
 from __future__ import annotations
@@ -18,23 +22,25 @@ from __future__ import annotations
 import torch
 from torch import nn
 from torch_geometric.data import Data
-from torch_geometric.nn import SAGEConv, global_mean_pool
+from torch_geometric.nn import SAGEConv, global_max_pool, global_mean_pool
 
 from hrc_lab.env.robot.spec import StageObservation
+from hrc_lab.reasoning.augment import augmented
 from hrc_lab.reasoning.base import TorchReasoner
-from hrc_lab.reasoning.configs import ChainSAGEConfig
+from hrc_lab.reasoning.configs import ChainSAGEConfig, HRCConfig
 from hrc_lab.reasoning.encoding import chain_graph
 from hrc_lab.reasoning.two_stage import StageClassifier, TwoStageNet
 
 
 class SAGEStack(nn.Module):
-    """``layers`` SAGEConv layers with mean aggregation, ReLU and L2-normalised embeddings (Eq. 4.1-4.2)."""
+    """``layers`` SAGEConv layers with mean aggregation (Eq. 4.1; ``aggr="max"`` takes the element-wise maximum over
+    the neighbours instead), ReLU and L2-normalised embeddings (Eq. 4.2)."""
 
-    def __init__(self, in_channels: int, hidden: int, layers: int = 3) -> None:
+    def __init__(self, in_channels: int, hidden: int, layers: int = 3, aggr: str = "mean") -> None:
         super().__init__()
         sizes = [in_channels] + [hidden] * layers
         self.convs = nn.ModuleList(
-            SAGEConv(a, b, aggr="mean", normalize=True) for a, b in zip(sizes, sizes[1:], strict=False)
+            SAGEConv(a, b, aggr=aggr, normalize=True) for a, b in zip(sizes, sizes[1:], strict=False)
         )
 
     def forward(self, x: torch.Tensor, edge_index: torch.Tensor) -> torch.Tensor:
@@ -46,9 +52,9 @@ class SAGEStack(nn.Module):
 class ChainSAGEEncoder(nn.Module):
     """SAGEConv stack, mean readout (Eq. 4.3) and a linear layer giving the m+1 logits of P_o."""
 
-    def __init__(self, in_channels: int, hidden: int, n_out: int, layers: int = 3) -> None:
+    def __init__(self, in_channels: int, hidden: int, n_out: int, layers: int = 3, aggr: str = "mean") -> None:
         super().__init__()
-        self.sage = SAGEStack(in_channels, hidden, layers)
+        self.sage = SAGEStack(in_channels, hidden, layers, aggr)
         self.head = nn.Linear(hidden, n_out)
 
     def logits(self, x: torch.Tensor, edge_index: torch.Tensor, batch: torch.Tensor | None = None) -> torch.Tensor:
@@ -64,22 +70,36 @@ class NodeScoreEncoder(nn.Module):
 
     ABSENT = -1e9
 
-    def __init__(self, in_channels: int, hidden: int, n_out: int, layers: int = 3) -> None:
+    def __init__(self, in_channels: int, hidden: int, n_out: int, layers: int = 3, aggr: str = "mean") -> None:
         super().__init__()
-        self.sage = SAGEStack(in_channels, hidden, layers)
+        self.sage = SAGEStack(in_channels, hidden, layers, aggr)
         self.node_score = nn.Linear(hidden, 1)
         self.area_score = nn.Linear(hidden, 1)
         self.n_out = n_out
 
+    def area(self, h: torch.Tensor, batch: torch.Tensor) -> torch.Tensor:
+        """(B, 1) logit of the packaging area: a linear score of the mean readout G (Eq. 4.3)."""
+        return self.area_score(global_mean_pool(h, batch))
+
     def forward(self, batch) -> torch.Tensor:
         h = self.sage(batch.x, batch.edge_index)
-        area = self.area_score(global_mean_pool(h, batch.batch))
+        area = self.area(h, batch.batch)
         products = torch.full((len(area), self.n_out - 1), self.ABSENT, dtype=h.dtype)
         products = products.index_put((batch.batch, batch.product), self.node_score(h).squeeze(-1))
         return torch.cat([area, products], dim=1)
 
 
-ENCODERS = {"mean": ChainSAGEEncoder, "node_scores": NodeScoreEncoder}
+class PointerEncoder(NodeScoreEncoder):
+    """A pointer over the product nodes and the packaging area (``reasoning.readout=pointer``, hrc_lab's): each
+    node scores itself as the product to pick and, separately, as the one to place; the packaging area's logit is
+    the highest placing score of any node. A placing stage is told by the held product's own node, however many
+    products the scene holds or has packed (the mean readout of G dilutes it with every other node)."""
+
+    def area(self, h: torch.Tensor, batch: torch.Tensor) -> torch.Tensor:
+        return global_max_pool(self.area_score(h), batch)
+
+
+ENCODERS = {"mean": ChainSAGEEncoder, "node_scores": NodeScoreEncoder, "pointer": PointerEncoder}
 
 
 class ChainSAGEReasoner(TorchReasoner):
@@ -91,3 +111,23 @@ class ChainSAGEReasoner(TorchReasoner):
 
     def encode(self, obs: StageObservation) -> Data:
         return chain_graph(obs, self.spec, self.cfg.edges, self.cfg.position_frame)
+
+
+class HRCReasoner(ChainSAGEReasoner):
+    """``reasoning=hrc``, hrc_lab's reasoning module: the chain-graph GraphSAGE network of ``ours`` with the
+    all-earlier edges, the pointer readout (:class:`PointerEncoder`) and the aggregation ``reasoning.aggr``,
+    trained on the observations plus ``reasoning.augment_copies`` identity-relabelled copies of each
+    (:func:`hrc_lab.reasoning.augment.relabel`; none when ``reasoning.augment`` is false). The same stage
+    classifier, loss L_re (Eq. 4.4-4.6) and training schedule as ``ours``."""
+
+    cfg: HRCConfig
+
+    def build_network(self) -> nn.Module:
+        cfg = self.cfg
+        encoder = ENCODERS[cfg.readout](4, cfg.hidden, self.n_o, cfg.layers, cfg.aggr)
+        return TwoStageNet(encoder, StageClassifier(self.n_o, self.n_g, cfg.classifier_hidden))
+
+    def training_observations(self, observations: list[StageObservation]) -> list[StageObservation]:
+        if not self.cfg.augment:
+            return observations
+        return augmented(observations, self.cfg.augment_copies, self.seed)

@@ -103,7 +103,8 @@ class TwoStageConfig(PackageToOrderReasonerConfig):
 
 
 CHAIN_EDGES = ("chain", "bidirectional", "all_earlier")
-READOUTS = ("mean", "node_scores")
+READOUTS = ("mean", "node_scores", "pointer")
+AGGREGATIONS = ("mean", "max")
 
 
 @dataclass
@@ -111,7 +112,8 @@ class ChainSAGEConfig(TwoStageConfig):
     """``edges``: "chain" links each product's node to the next one (the thesis' reading of E = {e_ij}, default),
     "bidirectional" both ways, "all_earlier" every earlier node to every later one (the other reading of
     "i = 1..m-1 and j = 2..m"). ``readout``: "mean" is Eq. 4.3 + a linear layer (the thesis); "node_scores" is
-    hrc_lab's ablation, a score per product node and one for the packaging area from the mean readout."""
+    hrc_lab's ablation, a score per product node and one for the packaging area from the mean readout; "pointer"
+    scores the packaging area by the node scoring it highest (``reasoning=hrc``)."""
 
     edges: str = "chain"
     readout: str = "mean"
@@ -122,6 +124,25 @@ class ChainSAGEConfig(TwoStageConfig):
             raise ValueError(f"reasoning.edges must be one of {CHAIN_EDGES}, got {self.edges!r}")
         if self.readout not in READOUTS:
             raise ValueError(f"reasoning.readout must be one of {READOUTS}, got {self.readout!r}")
+
+
+@dataclass
+class HRCConfig(ChainSAGEConfig):
+    """hrc_lab's reasoning module (``reasoning=hrc``, :class:`hrc_lab.reasoning.chain_sage.HRCReasoner`): ours'
+    network with the all-earlier edges and the pointer readout; ``aggr`` aggregates the neighbours of Eq. 4.1 by
+    their "mean" (the thesis) or element-wise "max"; with ``augment`` it trains on the expert's observations plus
+    ``augment_copies`` identity-relabelled copies of each (:mod:`hrc_lab.reasoning.augment`)."""
+
+    edges: str = "all_earlier"
+    readout: str = "pointer"
+    aggr: str = "max"
+    augment: bool = True
+    augment_copies: int = 4
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.aggr not in AGGREGATIONS:
+            raise ValueError(f"reasoning.aggr must be one of {AGGREGATIONS}, got {self.aggr!r}")
 
 
 FlatMLPConfig = TwoStageConfig
@@ -159,6 +180,9 @@ REASONERS.register("ours_all_earlier", ChainSAGEConfig, CHAIN_SAGE, family=CH4, 
                    variant_of="ours")
 REASONERS.register("ours_node_scores", ChainSAGEConfig, CHAIN_SAGE, family=CH4,
                    label="Ours + node scores (hrc_lab)", variant_of="ours")
+# hrc_lab's reasoning module (issue 45), a method of its own: its row stands beside the thesis' module, not as a variant
+REASONERS.register("hrc", HRCConfig, "hrc_lab.reasoning.chain_sage:HRCReasoner", family=CH4,
+                   label="hrc_lab's module")
 REASONERS.register("gnn", ObjectGoalGNNConfig, OBJECT_GOAL_GNN, family=CH4, label="GNN [74]")
 REASONERS.register("gnn_task", ObjectGoalGNNConfig, OBJECT_GOAL_GNN, family=CH4, label="GNN-task")
 REASONERS.register("mlp", FlatMLPConfig, "hrc_lab.reasoning.flat_mlp:FlatMLPReasoner", family=CH4, label="MLP")

@@ -38,6 +38,9 @@ CELLS = ["2of3", "3of3", "3of5", "4of5"]
 METHODS = list(REASONERS.family(CH4))
 LABELS = REASONERS.labels(CH4)
 OURS_FAMILY = list(REASONERS.with_variants("ours"))  # the thesis' module and issue 24's variants of it
+# the methods whose rows the thesis' statements and the per-head diagnostics show: ours, its variants and hrc_lab's
+# own module (issue 45)
+DIAGNOSED = [*OURS_FAMILY, "hrc"]
 SPANS = ("pick_span_x_m", "pick_span_y_m", "goal_span_x_m", "goal_span_y_m")  # logged by every Table 4.1 run
 # The env keys that set Table 4.1's test conditions (where products and goals may be, Sec. 4.4.3's ranges): an
 # ablation whose runs logged other values than the default section's runs is not comparable with its rows
@@ -234,7 +237,8 @@ def fig_4_7(runs: pd.DataFrame) -> Section:
 
 
 def _thesis_claims(frame: pd.DataFrame, thesis: dict) -> list[str]:
-    """The thesis' three Fig. 4.7 statements beside ``ours`` and its variants at the same points."""
+    """The thesis' three Fig. 4.7 statements beside ``ours``, its variants and ``hrc`` (:data:`DIAGNOSED`) at the
+    same points."""
     case2 = thesis["case2_ours_sr_at_lambda_1"]
     claims = [
         ("CASE 1, 3of5, unseen configurations at λ = 0.6", "case1", "3of5", 0.6,
@@ -244,7 +248,7 @@ def _thesis_claims(frame: pd.DataFrame, thesis: dict) -> list[str]:
         ("CASE 2, 3of5, λ = 1", "case2", "3of5", 1.0, thesis_fmt(case2["3of5"], digits=3)),
         ("CASE 2, 4of5, λ = 1", "case2", "4of5", 1.0, thesis_fmt(case2["4of5"], digits=3)),
     ]
-    methods = [m for m in OURS_FAMILY if m in set(frame.method)]
+    methods = [m for m in DIAGNOSED if m in set(frame.method)]
     rows = []
     for label, case, cell, ratio, ref in claims:
         row = {"thesis statement": label, "thesis": ref}
@@ -274,12 +278,12 @@ def _where_ours_fails(runs: pd.DataFrame, cells: list[str]) -> list[str]:
 
 
 def _diagnostics(runs: pd.DataFrame, points: list, demos: str | None = None) -> list[str]:
-    """Per-head, per-stage accuracies of ``ours`` and its variants (mean over seeds) and where their wrong picks
-    point, one row per method and point ``(labels, row mask, metric pattern with {} for the metric)``; then the head
-    and the error kind that account for most of ``ours``' failures, read from the same numbers. Rows whose metrics
-    were not logged are left out."""
+    """Per-head, per-stage accuracies of ``ours``, its variants and ``hrc`` (mean over seeds) and where their wrong
+    picks point, one row per method and point ``(labels, row mask, metric pattern with {} for the metric)``; then the
+    head and the error kind that account for most of ``ours``' failures, read from the same numbers. Rows whose
+    metrics were not logged are left out."""
     records = []
-    for method in [m for m in OURS_FAMILY if m in set(runs.method)]:
+    for method in [m for m in DIAGNOSED if m in set(runs.method)]:
         for labels, mask, pattern in points:
             part = runs[(runs.method == method) & mask]
             keys = [*HEADS, *PICK_ERRORS, "sr"] + ([demos] if demos else [])
