@@ -118,7 +118,8 @@ class GraspSolverConfig:
     steps: int = 3000  # gradient steps in all, split over trainer.max_epochs (batches sampled with replacement)
     max_iterations: int = 6  # Algorithm 4: most requests (graspability check + decoded solution) on one image
     # > 0: each node's features are followed by the depth image's heights max-pooled over a depth_grid x depth_grid
-    # partition of its box (hrc_lab.grasp.observation.height_grids; the thesis' future work, 6.5). 0: off, the thesis
+    # partition of its box and by the heights in the rule's two finger volumes beside it above the finger tips
+    # (hrc_lab.grasp.observation.height_grids; the thesis' future work, 6.5). 0: off, the thesis
     depth_grid: int = 0
     detector: DetectorConfig = field(default_factory=DetectorConfig)
 

@@ -10,7 +10,7 @@ import numpy as np
 import torch
 
 from hrc_lab.env.clutter.rule import blocker_solution, blockers
-from hrc_lab.env.clutter.spec import ClutterScene, ClutterSpec
+from hrc_lab.env.clutter.spec import ClutterScene, ClutterSpec, box_centre_median
 from hrc_lab.grasp.configs import DetectorConfig
 from hrc_lab.grasp.detection_metrics import match_detections
 from hrc_lab.grasp.detector import Detections
@@ -78,12 +78,9 @@ def finger_clearances(spec: ClutterSpec, heights: np.ndarray, box: np.ndarray) -
     height of the box's central third), in :data:`HEIGHT_UNIT`; > 0: something there reaches above the tips."""
     x0, y0, x1, y1 = np.asarray(box, dtype=float)
     size_y, size_x = heights.shape
-    cx, cy, w, h = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 6, (y1 - y0) / 6
-    centre = heights[int(np.floor(cy - h)):max(int(np.ceil(cy + h)), int(np.floor(cy - h)) + 1),
-                     int(np.floor(cx - w)):max(int(np.ceil(cx + w)), int(np.floor(cx - w)) + 1)]
-    top = float(np.median(centre)) if centre.size else 0.0
-    scale = spec.image_size / 2 / (spec.view_half_width / spec.camera_height)
-    px_per_m = scale / max(spec.camera_height - top * HEIGHT_UNIT, 1e-3)
+    cy = (y0 + y1) / 2
+    top = box_centre_median(heights, box)  # the part's top, as ClutterCell.locate reads it
+    px_per_m = spec.pixel_scale / max(spec.camera_height - top * HEIGHT_UNIT, 1e-3)
     gap, reach = spec.finger_gap * px_per_m, (spec.finger_gap + spec.finger_thickness) * px_per_m
     half_width = max(spec.finger_width / 2 * px_per_m, 0.5)
     rows = slice(max(int(np.floor(cy - half_width)), 0), min(int(np.ceil(cy + half_width)), size_y))

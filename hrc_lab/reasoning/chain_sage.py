@@ -105,8 +105,12 @@ ENCODERS = {"mean": ChainSAGEEncoder, "node_scores": NodeScoreEncoder, "pointer"
 class ChainSAGEReasoner(TorchReasoner):
     cfg: ChainSAGEConfig
 
+    def aggregation(self) -> str:
+        """The neighbour aggregation of Eq. 4.1: the thesis' mean."""
+        return "mean"
+
     def build_network(self) -> nn.Module:
-        encoder = ENCODERS[self.cfg.readout](4, self.cfg.hidden, self.n_o, self.cfg.layers)
+        encoder = ENCODERS[self.cfg.readout](4, self.cfg.hidden, self.n_o, self.cfg.layers, self.aggregation())
         return TwoStageNet(encoder, StageClassifier(self.n_o, self.n_g, self.cfg.classifier_hidden))
 
     def encode(self, obs: StageObservation) -> Data:
@@ -122,10 +126,8 @@ class HRCReasoner(ChainSAGEReasoner):
 
     cfg: HRCConfig
 
-    def build_network(self) -> nn.Module:
-        cfg = self.cfg
-        encoder = ENCODERS[cfg.readout](4, cfg.hidden, self.n_o, cfg.layers, cfg.aggr)
-        return TwoStageNet(encoder, StageClassifier(self.n_o, self.n_g, cfg.classifier_hidden))
+    def aggregation(self) -> str:
+        return self.cfg.aggr
 
     def training_observations(self, observations: list[StageObservation]) -> list[StageObservation]:
         if not self.cfg.augment:

@@ -90,10 +90,15 @@ class ClutterSpec:
         """The camera's (vertical = horizontal) field of view, degrees."""
         return float(np.degrees(2 * np.arctan(self.view_half_width / self.camera_height)))
 
+    @property
+    def pixel_scale(self) -> float:
+        """The camera's focal length in pixels: a length x at depth d spans ``pixel_scale * x / d`` pixels."""
+        return self.image_size / 2 / (self.view_half_width / self.camera_height)
+
     def project(self, points: np.ndarray) -> np.ndarray:
         """(..., 3) world points -> (..., 2) pixel coordinates (x right, y down; pixel k spans [k, k + 1))."""
         points = np.asarray(points, dtype=float)
-        scale = self.image_size / 2 / (self.view_half_width / self.camera_height)  # pixels per unit x / depth
+        scale = self.pixel_scale
         depth = self.camera_height - points[..., 2]
         u = self.image_size / 2 + scale * points[..., 0] / depth
         v = self.image_size / 2 - scale * points[..., 1] / depth
@@ -103,7 +108,7 @@ class ClutterSpec:
         """(..., 2) pixel coordinates and their (...) depths along the optical axis (m) -> (..., 3) world points:
         the inverse of :meth:`project`."""
         pixels, depth = np.asarray(pixels, dtype=float), np.asarray(depth, dtype=float)
-        scale = self.image_size / 2 / (self.view_half_width / self.camera_height)
+        scale = self.pixel_scale
         x = (pixels[..., 0] - self.image_size / 2) * depth / scale
         y = -(pixels[..., 1] - self.image_size / 2) * depth / scale
         return np.stack([x, y, self.camera_height - depth], axis=-1)
@@ -131,6 +136,15 @@ class VmrdSpec(ClutterSpec):
     def clutter(self) -> ClutterSpec:
         """The clutter scene spec of the same values (the scenes written when there is no ``vmrd_root``)."""
         return ClutterSpec(**{f.name: getattr(self, f.name) for f in fields(ClutterSpec)})
+
+
+def box_centre_median(image: np.ndarray, box: np.ndarray) -> float:
+    """The median of a (H, W) image (a depth or height map) over the central third of a (4,) px box (x0, y0, x1,
+    y1): the part's top as a top-down depth camera sees it, away from the box's edges."""
+    x0, y0, x1, y1 = np.asarray(box, dtype=float)
+    cx, cy, w, h = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 6, (y1 - y0) / 6
+    r0, c0 = int(np.floor(cy - h)), int(np.floor(cx - w))
+    return float(np.median(image[r0:max(int(np.ceil(cy + h)), r0 + 1), c0:max(int(np.ceil(cx + w)), c0 + 1)]))
 
 
 @dataclass

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hrc_lab.env.clutter.scenes import BASE_COLOURS, SceneCamera, import_mujoco
-from hrc_lab.env.clutter.spec import PART_TYPES, ClutterScene, ClutterSpec
+from hrc_lab.env.clutter.spec import PART_TYPES, ClutterScene, ClutterSpec, box_centre_median
 from hrc_lab.env.robot.settings import CELL_CAMERA
 
 import_mujoco()  # before robosuite does: MuJoCo with an off-screen GL (EGL, else OSMesa) for the scene camera
@@ -201,10 +201,7 @@ class ClutterCell(ManipulationEnv):
         """The grasp point (scene frame, m) of a detected box: the box centre's pixel at the median depth of the
         central third of the box (the part's top as the depth camera sees it)."""
         x0, y0, x1, y1 = np.asarray(box, dtype=float)
-        cx, cy, w, h = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 6, (y1 - y0) / 6
-        rows = slice(int(np.floor(cy - h)), int(np.ceil(cy + h)) or 1)
-        cols = slice(int(np.floor(cx - w)), int(np.ceil(cx + w)) or 1)
-        return self.spec.unproject(np.array([cx, cy]), float(np.median(depth[rows, cols])))
+        return self.spec.unproject(np.array([(x0 + x1) / 2, (y0 + y1) / 2]), box_centre_median(depth, box))
 
     # --- motion -----------------------------------------------------------------------------------------------
 
