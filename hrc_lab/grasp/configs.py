@@ -6,7 +6,8 @@
 depth image's heights to the node features (``depth_grid``); ``gnn_transformer`` (★, the thesis' future work)
 decodes the solutions with a Transformer (``decoder``). ``gvmrn_rf`` (relation classification on union-box
 features, :mod:`hrc_lab.grasp.relation`) reads ``distance_filter``, ``hidden``, ``layers`` and the training keys;
-``vmrn`` (Table 6.3's pair classifier, :mod:`hrc_lab.grasp.vmrn`) reads ``hidden``, ``layers`` and the training keys.
+``vmrn`` (Table 6.3's pair classifier, :mod:`hrc_lab.grasp.vmrn`) reads ``hidden``, ``layers`` and the training keys;
+``rule`` (the labelling rule as the solver, :mod:`hrc_lab.grasp.rule`) learns nothing and reads only ``max_iterations``.
 """
 
 from __future__ import annotations
@@ -149,3 +150,4 @@ for _name in ("gnn_att", "gnn_att_oracle", "gnn_att_wo_we", "gnn_lstm", "gnn_df_
     GRASPS.register(_name, GraspSolverConfig, SOLVER)
 GRASPS.register("gvmrn_rf", GraspSolverConfig, "hrc_lab.grasp.relation:RelationSolver")
 GRASPS.register("vmrn", GraspSolverConfig, "hrc_lab.grasp.vmrn:VmrnSolver")
+GRASPS.register("rule", GraspSolverConfig, "hrc_lab.grasp.rule:RuleSolver")
