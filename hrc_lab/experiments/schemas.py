@@ -366,9 +366,12 @@ class Table43Protocol:
             return
         if reasoning is None or rl is not None:
             raise ValueError(f"tamp={system} needs a reasoning module (e.g. reasoning=ours) and rl=none")
-        if system == "ours" and motion.name not in MOTION_PLANNERS:
-            raise ValueError(f"tamp=ours needs a learned motion module (motion={' or motion='.join(MOTION_PLANNERS)}),"
-                             f" got motion={motion.name}")
+        if system in ("ours", "ours_hrc") and motion.name not in MOTION_PLANNERS:
+            raise ValueError(f"tamp={system} needs a learned motion module (motion="
+                             f"{' or motion='.join(MOTION_PLANNERS)}), got motion={motion.name}")
+        if system == "ours_hrc" and reasoning.name != "hrc":
+            raise ValueError(f"tamp=ours_hrc is Algorithm 2 with hrc_lab's reasoning module: it needs reasoning=hrc, "
+                             f"got reasoning={reasoning.name} (tamp=ours reasoning={reasoning.name} is that system)")
         if system == "rm_rrt_connect" and motion.name != "rrt_connect":
             raise ValueError(f"tamp=rm_rrt_connect needs motion=rrt_connect, got motion={motion.name}")
 

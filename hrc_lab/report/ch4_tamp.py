@@ -58,7 +58,8 @@ def table_4_3(runs: pd.DataFrame) -> Section:
     for system in systems:
         row = {"system": LABELS[system]}
         for cell in cells:
-            ref = thesis_value(thesis[system]["sr"], thesis["columns"], cell) or (None, None)  # None: not run
+            # None: not run (or a system the thesis does not have)
+            ref = thesis_value(thesis.get(system, {}).get("sr"), thesis["columns"], cell) or (None, None)
             mean, std = _stat(stats["sr"], system, cell)
             row[f"{cell} SR"] = f"{fmt(mean, std)} ({thesis_fmt(*ref)})"
             c1, c2 = _stat(stats["sr_case1"], system, cell)[0], _stat(stats["sr_case2"], system, cell)[0]
@@ -73,7 +74,7 @@ def table_4_3(runs: pd.DataFrame) -> Section:
 
     timing = []
     for system in systems:
-        ref = thesis[system]
+        ref = thesis.get(system, {})
         ref_plan = (f"{ref['planning_ms'][0]} ± {ref['planning_ms'][1]} ms" if "planning_ms" in ref else
                     f"{ref['planning_s'][0]} ± {ref['planning_s'][1]} s" if "planning_s" in ref else "–")
         ref_exec = f"{ref['execution_s'][0]} ± {ref['execution_s'][1]} s" if "execution_s" in ref else "–"

@@ -22,9 +22,11 @@ class TampConfig:
 
 
 # Table 4.3's rows, in its order: name -> (system class in hrc_lab.tamp.systems, the reports' label). Ours:
-# reasoning module + two-level motion module (Algorithm 2); DRL: one flat DDPG + HER agent, no reasoning module;
+# reasoning module + two-level motion module (Algorithm 2); ours_hrc (not in the thesis): the same with hrc_lab's
+# reasoning module (reasoning=hrc); DRL: one flat DDPG + HER agent, no reasoning module;
 # RM+RRT-Connect: the same reasoning module, the motion module replaced by OMPL's RRT-Connect ([138], [139]).
 SYSTEMS = {"ours": ("OursSystem", "Ours (Algorithm 2)"),
+           "ours_hrc": ("OursSystem", "★ Ours with hrc_lab's reasoning module (beyond the thesis)"),
            "drl": ("DRLSystem", "DRL (DDPG + HER)"),
            "rm_rrt_connect": ("RMRRTConnectSystem", "RM+RRT-Connect")}
 LABELS = {name: label for name, (_, label) in SYSTEMS.items()}
