@@ -46,6 +46,11 @@ def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_p
     for metric in ("success_rate", "collision_rate", "grip_rate", "moved_rate", "train_guidance_rate",
                    "env_steps_per_s", "updates_per_s", "train_grip_rate", "train_moved_rate", "train_final_distance"):
         assert [m.step for m in client.get_metric_history(run_id, metric)] == [1, 2], metric
+    # the update diagnostics of the epochs that updated (epoch 1's 8 steps are rl.learning_starts): targets within
+    # the clipped return range [-1 / (1 - gamma), 0]
+    for metric in ("critic_loss", "actor_loss", "q_policy", "target_q", "bc_loss", "bc_share"):
+        assert [m.step for m in client.get_metric_history(run_id, metric)] == [2], metric
+    assert -50 <= job.run.data.metrics["target_q"] <= 0 and 0 <= job.run.data.metrics["bc_share"] <= 1
     # 3.3's action: the joints (with wrist 3) and no suction dimension; the cup grips what it touches
     assert job.run.data.params["rl.suction"] == "auto"
     guidance = [m.value for m in client.get_metric_history(run_id, "train_guidance_rate")]

@@ -74,6 +74,7 @@ class HerDDPG(DDPG):
         self.demo_buffer: FilledHerReplayBuffer | None = None
         self._open_demos: dict[int, list[tuple]] = {}  # env index -> the guided episode being collected
         self._statistics_steps = 0  # num_timesteps when the normaliser last took the replay buffer's new rows
+        self._update_sums: dict[str, float] = {}  # per-update diagnostics summed since the last update_diagnostics()
         super().__init__(*args, **kwargs)
 
     # --- exploration and storage --------------------------------------------------------------------------------
@@ -160,6 +161,7 @@ class HerDDPG(DDPG):
         actions = self.actor(data.observations)
         q_pi = self.critic.q1_forward(data.observations, actions)
         loss = -q_pi.mean()
+        self._accumulate("q_policy", q_pi.mean().item())
         if self.action_l2 > 0:  # HER paper: the action penalty on the [-1, 1] actions
             loss = loss + self.action_l2 * actions.pow(2).mean()
         if n_demo and self.bc_weight > 0:  # Nair et al.: behaviour cloning on the demonstrations, Q-filtered
@@ -169,8 +171,23 @@ class HerDDPG(DDPG):
                     better = self.critic.q1_forward(
                         {key: v[:n_demo] for key, v in data.observations.items()}, data.actions[:n_demo])
                     error = error * (better > q_pi[:n_demo].detach()).float()
-            loss = loss + self.bc_weight * error.sum()
+            bc_loss = self.bc_weight * error.sum()
+            self._accumulate("bc_loss", bc_loss.item())
+            self._accumulate("bc_share", bc_loss.item() / max(1e-9, abs(loss.item()) + bc_loss.item()))
+            loss = loss + bc_loss
         return loss
+
+    def _accumulate(self, key: str, value: float) -> None:
+        self._update_sums[key] = self._update_sums.get(key, 0.0) + value
+        self._update_sums[f"{key}#"] = self._update_sums.get(f"{key}#", 0.0) + 1
+
+    def update_diagnostics(self) -> dict[str, float]:
+        """Means over the gradient steps since the last call (then reset), for the trainer's per-epoch metrics:
+        ``critic_loss``, ``target_q`` (the critic's targets), ``q_policy`` (Q(s, pi(s)) the actor climbs),
+        ``actor_loss``; with demonstrations ``bc_loss`` (the weighted cloning term) and ``bc_share`` (its share of
+        the actor's loss magnitude). A falling ``q_policy`` with a rising ``critic_loss`` is the critic diverging."""
+        sums, self._update_sums = self._update_sums, {}
+        return {key: sums[key] / sums[f"{key}#"] for key in sums if not key.endswith("#")}
 
     def pretrain_on_demonstrations(self, batch_size: int) -> None:
         """Behaviour cloning alone: ``bc_pretrain_steps`` batches of demonstrations (HER-relabelled goals, as in
@@ -218,6 +235,8 @@ class HerDDPG(DDPG):
                     target_q = target_q.clamp(*return_bounds)
             critic_loss = sum(F.mse_loss(q, target_q) for q in self.critic(data.observations, data.actions))
             critic_losses.append(critic_loss.item())
+            self._accumulate("critic_loss", critic_loss.item())
+            self._accumulate("target_q", target_q.mean().item())
             self.critic.optimizer.zero_grad()
             critic_loss.backward()
             self.critic.optimizer.step()
@@ -225,6 +244,7 @@ class HerDDPG(DDPG):
             if self.critic_warmup_until is None or self._n_updates > self.critic_warmup_until:
                 actor_loss = self._actor_loss(data, n_demo)
                 actor_losses.append(actor_loss.item())
+                self._accumulate("actor_loss", actor_loss.item())
                 self.actor.optimizer.zero_grad()
                 actor_loss.backward()
                 self.actor.optimizer.step()
@@ -239,4 +259,4 @@ class HerDDPG(DDPG):
             self.logger.record("train/critic_loss", np.mean(critic_losses))
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "demo_buffer", "_open_demos"]
+        return [*super()._excluded_save_params(), "demo_buffer", "_open_demos", "_update_sums"]

@@ -106,10 +106,11 @@ def train_epochs(agent: Any, cfg: RLConfig, epochs: int, evaluate: Callable[[Any
                  checkpoint_every: int = 10, step_offset: int = 0, desc: str = "rl") -> None:
     """Train ``agent`` to ``epochs`` epochs (a resumed agent continues after the epochs it has). After each epoch:
     ``evaluate(agent, epoch)`` (the deterministic policy's scores; None: no evaluation), the epoch's training
-    episodes' rates (:class:`~hrc_lab.rl.agent.EpisodeMetrics`), ``env_steps_per_s`` (collected steps / time in
-    collection, guidance included), ``updates_per_s`` (gradient steps / time in training), ``epoch_s`` and the
-    epoch's ``learning_rate`` (:func:`learning_rate_at`), logged with ``log(metrics, step_offset + epoch)``;
-    ``save(agent)`` every ``checkpoint_every`` epochs and at the end."""
+    episodes' rates (:class:`~hrc_lab.rl.agent.EpisodeMetrics`), the epoch's update diagnostics
+    (:meth:`~hrc_lab.rl.ddpg.HerDDPG.update_diagnostics`: losses and Q-values), ``env_steps_per_s`` (collected
+    steps / time in collection, guidance included), ``updates_per_s`` (gradient steps / time in training),
+    ``epoch_s`` and the epoch's ``learning_rate`` (:func:`learning_rate_at`), logged with ``log(metrics,
+    step_offset + epoch)``; ``save(agent)`` every ``checkpoint_every`` epochs and at the end."""
     per_epoch = episodes_per_epoch(cfg)
     timer = PhaseTimes()
     training: dict[str, float] = {}  # the epoch's training episodes (guided ones included), as they ended
@@ -124,6 +125,7 @@ def train_epochs(agent: Any, cfg: RLConfig, epochs: int, evaluate: Callable[[Any
         learn_episodes(agent, epoch * per_epoch, callback)
         metrics = dict(evaluate(agent, epoch)) if evaluate is not None else {}
         metrics.update({key: training.get(key, float("nan")) for key in TRAIN_METRICS})
+        metrics.update(agent.update_diagnostics())  # the epoch's critic and actor losses and Q-values
         metrics.update({
             "env_steps_per_s": (agent.num_timesteps - steps) / max(1e-9, timer.collect_s - collect_s),
             "updates_per_s": (agent._n_updates - updates) / max(1e-9, timer.train_s - train_s),
