@@ -1,7 +1,8 @@
-"""The Ch.6 robot cell's grasps with and without the pre-grasp opening (``protocol.preshape``), on parts the rule
-finds graspable: for each of the first two such parts of generated scenes (ground-truth boxes, so detection and the
-solver play no part), one pick with the fingers fully open and one pre-shaped, each from the placed scene. Prints,
-per opening, the share of picks that lifted the named part and the share that moved a neighbour by more than 5 mm.
+"""The Ch.6 robot cell's grasps with and without the pre-grasp opening (``protocol.preshape``) and the approach yaw
+chosen from the depth image (``protocol.choose_yaw``), on parts the rule finds graspable: for each of the first two
+such parts of generated scenes (ground-truth boxes, so detection and the solver play no part), one pick fully open,
+one pre-shaped and one pre-shaped at the chosen yaw, each from the placed scene. Prints, per way, the share of picks
+that lifted the named part and the share that moved a neighbour by more than 5 mm.
 
     MUJOCO_GL=egl .venv/bin/python scripts/ch6_pregrasp_picks.py --scenes 25 --parts 5   # ~10 min on a free core
 """
@@ -27,7 +28,7 @@ def main() -> None:
     args = parser.parse_args()
     spec = replace(ClutterSpec(), min_objects=args.parts, max_objects=args.parts)
     cell = ClutterCell(spec, seed=0)
-    picks = {"fully open": [], "pre-shaped": []}
+    picks = {"fully open": [], "pre-shaped": [], "pre-shaped, yaw chosen": []}
     for seed in range(FIRST_SEED, FIRST_SEED + args.scenes):
         scene = generate_scene(spec, seed)
         parts = [i for i, ok in enumerate(graspable(spec, scene)) if ok][:2]
@@ -39,8 +40,11 @@ def main() -> None:
                     continue
                 box = now.boxes[shown.index(part)]
                 before = cell.part_poses()[0].copy()
-                half = cell.grasp_opening(box, now.depth) if opening == "pre-shaped" else None
-                outcome = cell.pick(cell.locate(box, now.depth), half)
+                if opening == "pre-shaped, yaw chosen":
+                    yaw, half = cell.grasp_yaw(box, now.depth)
+                else:
+                    yaw, half = 0.0, cell.grasp_opening(box, now.depth) if opening == "pre-shaped" else None
+                outcome = cell.pick(cell.locate(box, now.depth), half, yaw)
                 moved = np.linalg.norm(cell.part_poses()[0] - before, axis=1)
                 others = [j for j in range(len(moved)) if j not in (part, outcome.held)]
                 picks[opening].append((outcome.held == part, any(moved[j] > DISTURBED for j in others)))

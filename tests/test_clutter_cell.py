@@ -94,6 +94,33 @@ def test_the_pre_grasp_opening_is_the_parts_extent_plus_the_rules_gap(cell):
     assert cell.grasp_opening(scene.objects[0].box, depth) == pytest.approx(expected, abs=0.005)
 
 
+def _depth_of_blocks(blocks):
+    """A depth image of the scene camera over the table with axis-aligned blocks (x0, x1, y0, y1, height), m."""
+    rows, cols = np.indices((SPEC.image_size, SPEC.image_size))
+    pixels = np.stack([cols + 0.5, rows + 0.5], axis=-1)
+    heights = np.zeros(rows.shape)
+    for x0, x1, y0, y1, height in blocks:
+        xy = SPEC.unproject(pixels, np.full(rows.shape, SPEC.camera_height - height))
+        inside = (xy[..., 0] >= x0) & (xy[..., 0] <= x1) & (xy[..., 1] >= y0) & (xy[..., 1] <= y1)
+        heights[inside] = np.maximum(heights[inside], height)
+    return (SPEC.camera_height - heights).astype(np.float32)
+
+
+def test_the_approach_yaw_turns_the_fingers_away_from_a_tall_neighbour(cell):
+    """A 3 x 3 cm part 3 cm high at the centre: alone, the rule's yaw (0) and its pre-grasp opening; with a 7 cm tall
+    wall 1.5 cm beyond it in +x, 12 cm long in y (in the fingers' way at every yaw up to 60 degrees), about a
+    quarter turn, the fingers closing along y."""
+    part = (-0.015, 0.015, -0.015, 0.015, 0.03)
+    corners = SPEC.project(np.array([[-0.015, 0.015, 0.03], [0.015, -0.015, 0.03]]))
+    box = np.array([*corners[0], *corners[1]], dtype=np.float32)
+    alone = _depth_of_blocks([part])
+    yaw, half = cell.grasp_yaw(box, alone)
+    assert yaw == 0.0 and half == pytest.approx(cell.grasp_opening(box, alone), abs=0.004)
+    crowded = _depth_of_blocks([part, (0.03, 0.06, -0.06, 0.06, 0.07)])
+    yaw, half = cell.grasp_yaw(box, crowded)
+    assert abs(np.degrees(yaw)) >= 75 and half < 0.03
+
+
 def oracle_nodes(now):
     """The scene as a perfect detector and the rule would read it."""
     found = blockers(THREE, now)

@@ -254,7 +254,7 @@ def table_6_2_robot(ctx: RunContext) -> dict[str, float]:
             read=lambda nodes, mask: solver.read([solver.graph(nodes, mask)])[0],
             max_requests=cfg.max_iterations, max_grasps=protocol.max_grasps,
             answer_right=lambda nodes, goal, answer: iterative_correct(fixed, nodes, goal, answer),
-            on_decision=on_decision, preshape=protocol.preshape,
+            on_decision=on_decision, preshape=protocol.preshape, choose_yaw=protocol.choose_yaw,
         )
 
     episodes, steps, shown = [], [], None
@@ -274,7 +274,7 @@ def table_6_2_robot(ctx: RunContext) -> dict[str, float]:
                                  "failure": episode.failure, "grasps": sum(s.held is not None for s in episode.steps),
                                  "iterations": len(episode.steps)})
                 steps += [{"objects": count, "scene": k, "iteration": i, "action": s.action, "right": s.right,
-                           "cause": s.cause, "held": s.held or "", "disturbed": s.disturbed,
+                           "cause": s.cause, "held": s.held or "", "disturbed": s.disturbed, "yaw_deg": s.yaw_deg,
                            "requests": " | ".join(" ".join(r) for r in s.requests),
                            "solutions": " | ".join(" ".join(w) for w in s.solutions),
                            **{f"{phase}_ms": 1000 * v for phase, v in s.seconds.items()}}

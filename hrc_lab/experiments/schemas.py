@@ -648,6 +648,9 @@ class Table62RobotProtocol(Table62SingleProtocol):
     # open the fingers only to the named part's x-extent plus the rule's finger gap (and 5 mm), as the rule and the
     # thesis' 2F-85 have them; false: the 2F-140 fully open, its pads ~6 cm either side of the grasp point
     preshape: bool = True
+    # approach each grasp at the yaw (of 12, every 15 degrees) whose finger volumes, the 2F-140's as measured, the depth
+    # image shows clearest of neighbours (ClutterCell.grasp_yaw); false: the rule's fingers closing along x
+    choose_yaw: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()

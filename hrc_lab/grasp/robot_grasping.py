@@ -46,6 +46,7 @@ class RobotStep:
     cause: str  # its failure cause when it does not
     held: str | None = None  # the type of the part that rose with the gripper
     disturbed: int = 0  # neighbours the grasp moved by more than DISTURBED
+    yaw_deg: float = 0.0  # the grasp's approach yaw (0: the rule's fingers closing along x)
     seconds: dict[str, float] = field(default_factory=dict)  # render, detection, reasoning, motion (0: no grasp)
 
 
@@ -60,14 +61,16 @@ class RobotEpisode:
 def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[object], SceneNodes],
                 read: Callable[[SceneNodes, np.ndarray], list[NodeReading]], max_requests: int,
                 max_grasps: int, answer_right: Callable,
-                on_decision: Callable[[RobotStep], None] | None = None, preshape: bool = True) -> RobotEpisode:
+                on_decision: Callable[[RobotStep], None] | None = None, preshape: bool = True,
+                choose_yaw: bool = False) -> RobotEpisode:
     """Algorithm 4 with the robot on ``scene`` (rendered from ``spec``) for the requested type ``goal``.
     ``perceive(scene_now)`` detects and matches (the trained detector,
     :func:`~hrc_lab.grasp.observation.scene_nodes`); ``read(nodes, mask)`` is the solver's reading of every node for
     a request; ``answer_right(nodes, goal, answer)`` scores a single-image answer against the rule;
     ``on_decision(step)`` sees each iteration's decision before the robot acts on it (a video's caption);
     ``preshape``: open the fingers only as wide as the named part needs (:meth:`ClutterCell.grasp_opening`), else
-    fully."""
+    fully; ``choose_yaw``: approach at the yaw whose finger volumes the depth image shows clearest
+    (:meth:`ClutterCell.grasp_yaw`), else with the rule's fingers closing along x."""
     cell.place_scene(scene, spec)
     steps: list[RobotStep] = []
     aside = 0
@@ -103,7 +106,12 @@ def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[o
                                 or "other")
         before = cell.part_poses()[0]
         box = nodes.boxes[answer.grasp]
-        outcome = cell.pick(cell.locate(box, now.depth), cell.grasp_opening(box, now.depth) if preshape else None)
+        if choose_yaw:
+            yaw, half_opening = cell.grasp_yaw(box, now.depth, preshape)
+        else:
+            yaw, half_opening = 0.0, cell.grasp_opening(box, now.depth) if preshape else None
+        step.yaw_deg = float(np.degrees(yaw))
+        outcome = cell.pick(cell.locate(box, now.depth), half_opening, yaw)
         moved = np.linalg.norm(cell.part_poses()[0] - before, axis=1)
         step.disturbed = int(sum(moved[j] > DISTURBED for j in outcome.touched))
         if outcome.held is None:

@@ -71,6 +71,15 @@ LIFTED = 0.03  # m a part must rise with the gripper to count as held
 TURN_WRIST = np.pi / 2  # from robosuite's UR5e home, so the fingers close along world x
 OPENING_LEVELS = 11  # finger commands measured between open (-1) and closed (1) for the pre-grasp opening
 PRESHAPE_MARGIN = 0.005  # m per side beyond the rule's finger gap: the box centre's error as the part's centre
+ORIENTATION_TOLERANCE = 0.03  # rad: a waypoint is reached when the gripper is also turned this close to its goal
+# The approach yaw (grasp_yaw): the 2F-140's finger volumes seen from above, measured on the model at the observation
+# pose: each fingertip spans ~3.1 cm across the closing axis and ~1 cm beyond its pad; from ~2 cm above the tips the
+# inner finger reaches ~4.5 cm beyond the pad. (reach beyond the pad's inner face, m; height above the tips, m)
+FINGER_ZONES = ((0.012, 0.0), (0.045, 0.022))
+FINGER_HALF_WIDTH = 0.016  # m across the closing axis
+YAW_CANDIDATES = 12  # approach yaws tried, every 15 degrees over the gripper's half turn of symmetry
+NARROWEST_BIN = 0.004  # m: of the clear yaws, the narrowest opening (in bins of this) wins, then the smallest turn
+TOP_FACE_BAND = 0.005  # m: pixels of the box this close below the grasp point's height are the part's top face
 
 
 @dataclass
@@ -94,6 +103,7 @@ class ClutterCell(ManipulationEnv):
         self.camera: SceneCamera | None = None
         self.on_step: Callable[[], None] | None = None  # called after every control step the cell takes
         self._openings: tuple[np.ndarray, np.ndarray] | None = None  # finger_openings(), measured once
+        self._yaw = 0.0  # rad: the gripper's turn about the vertical from its home (a grasp's, pick to put)
         super().__init__(
             robots="UR5e",
             gripper_types=GRIPPER,
@@ -148,6 +158,7 @@ class ClutterCell(ManipulationEnv):
             self._set_part(slot, [*self._parked(slot), self.spec.part_size[self.slots[slot]][2] / 2], [1, 0, 0, 0])
         self.sim.forward()
         self._down = self.sim.data.site_xmat[self._eef_site].reshape(3, 3).copy()  # the gripper's home orientation
+        self._yaw = 0.0
         self._tip_below_site = self.sim.data.site_xpos[self._eef_site][2] - self._lowest_finger_point()
 
     def reward(self, action=None) -> float:
@@ -231,10 +242,52 @@ class ClutterCell(ManipulationEnv):
             self._openings = (commands, np.asarray(halves))
         return self._openings
 
-    def pick(self, point: np.ndarray, half_opening: float | None = None) -> PickOutcome:
+    def grasp_yaw(self, box: np.ndarray, depth: np.ndarray, preshape: bool = True) -> tuple[float, float | None]:
+        """(yaw, half opening): the approach yaw (rad about the vertical, 0 the rule's fingers closing along x) whose
+        finger volumes (:data:`FINGER_ZONES`, either side of the grasp point along the closing axis, from the pads'
+        inner faces out) the depth image shows clearest of neighbours, and the pre-grasp half opening at it (the
+        part's top face's extent along the closing axis plus the rule's ``finger_gap`` and :data:`PRESHAPE_MARGIN`;
+        None with ``preshape`` off: fully open). Of the :data:`YAW_CANDIDATES` yaws, those in which nothing rises
+        into a finger volume win, the smallest turn first; when none is clear, the one in which the highest
+        intrusion is lowest."""
+        point = self.locate(box, depth)
+        tips = point[2] - self.spec.grasp_depth
+        rows, cols = np.indices(depth.shape)
+        cloud = self.spec.unproject(np.stack([cols + 0.5, rows + 0.5], axis=-1), depth)
+        offsets, heights = cloud[..., :2] - point[:2], cloud[..., 2]
+        x0, y0, x1, y1 = np.asarray(box, dtype=float)
+        in_box = (cols + 0.5 >= x0) & (cols + 0.5 <= x1) & (rows + 0.5 >= y0) & (rows + 0.5 <= y1)
+        top_face = in_box & (heights >= point[2] - TOP_FACE_BAND)
+        widest = float(self.finger_openings()[1].max())
+        best = None
+        for k in range(YAW_CANDIDATES):
+            yaw = k * np.pi / YAW_CANDIDATES
+            yaw = yaw - np.pi if yaw > np.pi / 2 else yaw  # the shorter turn (the gripper is symmetric)
+            axis = np.array([np.cos(yaw), np.sin(yaw)])
+            along = np.abs(offsets @ axis)
+            across = np.abs(offsets @ [-axis[1], axis[0]])
+            half = (float(along[top_face].max()) if top_face.any() else 0.0) + self.spec.finger_gap + PRESHAPE_MARGIN
+            if preshape and half > widest:
+                continue
+            half = half if preshape else widest
+            intrusion = -np.inf  # how far the highest point in a finger volume rises above the volume's bottom
+            for reach, rise in FINGER_ZONES:
+                zone = (across <= FINGER_HALF_WIDTH) & (along >= half) & (along <= half + reach)
+                if zone.any():
+                    intrusion = max(intrusion, float(heights[zone].max()) - (tips + rise))
+            key = (max(intrusion, 0.0), round(half / NARROWEST_BIN), abs(yaw))
+            if best is None or key < best[0]:
+                best = (key, yaw, half if preshape else None)
+        if best is None:  # the part is wider than the gripper opens at every yaw
+            return 0.0, None
+        return best[1], best[2]
+
+    def pick(self, point: np.ndarray, half_opening: float | None = None, yaw: float = 0.0) -> PickOutcome:
         """Open (fully, or with ``half_opening`` to the command whose measured half opening is the smallest at least
-        that wide, :meth:`finger_openings`), come down on ``point`` (scene frame, the part's top) from above, close,
-        lift; from the observation pose and back to it with the part."""
+        that wide, :meth:`finger_openings`), turn the gripper ``yaw`` (rad about the vertical) from its home, come
+        down on ``point`` (scene frame, the part's top) from above, close, lift; from the observation pose and back
+        to it with the part (the gripper turns home when :meth:`put` has let go)."""
+        self._yaw = float(yaw)
         open_grip = -1.0
         if half_opening is not None:
             commands, halves = self.finger_openings()
@@ -263,6 +316,7 @@ class ClutterCell(ManipulationEnv):
         self._hold(np.array([*xy, bottom]) + grip_to_part, grip=1.0)
         self._hold(np.array([*xy, bottom]) + grip_to_part, grip=-1.0, steps=GRIP_STEPS)
         self._hold(np.array([*xy, LIFT]) + [*grip_to_part[:2], 0], grip=-1.0)
+        self._yaw = 0.0
         self._hold(OBSERVE, grip=-1.0)
 
     def object_type(self, index: int) -> str:
@@ -270,18 +324,20 @@ class ClutterCell(ManipulationEnv):
         return self.slots[self.active[index]]
 
     def _hold(self, target: np.ndarray, grip: float, steps: int | None = None, touched: set[int] | None = None) -> None:
-        """Drive the gripper site to ``target`` (scene frame) until within tolerance (or for exactly ``steps``
-        control steps), fingers commanded ``grip`` (-1 open, 1 closed), orientation held; contacts of the gripper
-        with the placed objects go into ``touched``."""
+        """Drive the gripper site to ``target`` (scene frame) until within tolerance, turned as :meth:`pick` set it
+        (or for exactly ``steps`` control steps), fingers commanded ``grip`` (-1 open, 1 closed); contacts of the
+        gripper with the placed objects go into ``touched``."""
         goal = np.asarray(target, dtype=float) + [0, 0, TABLE_TOP]
         base = self.sim.data.body_xmat[self._base_body].reshape(3, 3)
         for _ in range(steps or MAX_WAYPOINT_STEPS):
             error = goal - self.sim.data.site_xpos[self._eef_site]
-            if steps is None and np.linalg.norm(error) < WAYPOINT_TOLERANCE:
+            turn = self._orientation_error()
+            if steps is None and np.linalg.norm(error) < WAYPOINT_TOLERANCE and np.linalg.norm(
+                    turn) < ORIENTATION_TOLERANCE:
                 return
             action = np.zeros(7)
             action[:3] = np.clip(GAIN * base.T @ error, -1, 1)
-            action[3:6] = np.clip(ORIENTATION_GAIN * base.T @ self._orientation_error(), -1, 1)
+            action[3:6] = np.clip(ORIENTATION_GAIN * base.T @ turn, -1, 1)
             action[6] = grip
             self.step(action)
             if self.on_step is not None:
@@ -302,9 +358,12 @@ class ClutterCell(ManipulationEnv):
         return float(np.linalg.norm(centres[0][:2] - centres[1][:2]) / 2 - np.mean(thickness))
 
     def _orientation_error(self) -> np.ndarray:
-        """Axis-angle (world frame) that turns the gripper's current orientation into its home one."""
+        """Axis-angle (world frame) that turns the gripper's current orientation into its home one turned by the
+        grasp's yaw about the vertical."""
         current = mat2quat(self.sim.data.site_xmat[self._eef_site].reshape(3, 3))
-        turn = quat_multiply(mat2quat(self._down), quat_inverse(current))  # (x, y, z, w)
+        c, s = np.cos(self._yaw), np.sin(self._yaw)
+        goal = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ self._down
+        turn = quat_multiply(mat2quat(goal), quat_inverse(current))  # (x, y, z, w)
         return quat2axisangle(turn if turn[3] >= 0 else -turn)  # the shorter way round
 
     def _resting(self, shown: list[int]) -> np.ndarray:
