@@ -649,8 +649,10 @@ class Table62RobotProtocol(Table62SingleProtocol):
     # thesis' 2F-85 have them; false: the 2F-140 fully open, its pads ~6 cm either side of the grasp point
     preshape: bool = True
     # approach each grasp at the yaw (of 12, every 15 degrees) whose finger volumes, the 2F-140's as measured, the depth
-    # image shows clearest of neighbours (ClutterCell.grasp_yaw); false: the rule's fingers closing along x
-    choose_yaw: bool = False
+    # image shows clearest of neighbours (ClutterCell.grasp_yaw); false: the rule's fingers closing along x (the
+    # thesis' fixed orientation, 6.3). On 23 picks (scripts/ch6_pregrasp_picks.py) a neighbour moved in 0.04 of them
+    # against 0.13 (issue 47 item 2)
+    choose_yaw: bool = True
 
     def __post_init__(self) -> None:
         super().__post_init__()

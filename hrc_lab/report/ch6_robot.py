@@ -31,6 +31,16 @@ def _opening(runs: pd.DataFrame) -> str:
     return "the fingers fully open (`protocol.preshape=false`)" if value.lower() == "false" else f"preshape {value}"
 
 
+def _approach(runs: pd.DataFrame) -> str:
+    """At which yaw the gripper comes down (``protocol.choose_yaw``)."""
+    value = setting(runs, "protocol.choose_yaw")
+    if value.lower() == "true":
+        return ("turned to the yaw, of 12, whose finger volumes the depth image shows clear of neighbours, the "
+                "narrowest opening first (`protocol.choose_yaw`)")
+    return "its fingers closing along x as the rule's (" + (
+        "runs before `protocol.choose_yaw`)" if value == NOT_LOGGED else "`protocol.choose_yaw=false`)")
+
+
 @register_section("table_6_2_robot")
 def table_6_2_robot(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch6"]["table_6_2"]
@@ -58,10 +68,9 @@ def table_6_2_robot(runs: pd.DataFrame) -> Section:
         f"({amount(runs, 'protocol.cases', 'scenes')} per part count, the same seeds and draws) placed in the "
         "robosuite cell (UR5e, Robotiq 2F-140; `hrc_lab/env/robot/clutter_cell.py`). Each iteration images the "
         "scene, detects, reads the graph until the single-image answer, and grasps the part it names at the 3-D "
-        f"point of its box (depth image + camera model), {_opening(runs)}: a part of the requested type goes to the "
-        "tray and the "
-        "episode succeeds; another part is put aside and the scene imaged again. An episode that ends in help "
-        "succeeds when the rule's own Algorithm 4 also ends in help. "
+        f"point of its box (depth image + camera model), {_opening(runs)}, {_approach(runs)}: a part of the "
+        "requested type goes to the tray and the episode succeeds; another part is put aside and the scene imaged "
+        "again. An episode that ends in help succeeds when the rule's own Algorithm 4 also ends in help. "
         f"{over_seeds(runs, start=True)}; thesis (real UR10, 10 cases per count) in brackets; the single-image row "
         "is in [ch6_grasp.md](ch6_grasp.md).",
         "",
