@@ -375,6 +375,9 @@ def test_table_4_1_states_the_test_conditions_beside_the_thesis_ranges():
     assert "picking positions span 0.35 m in x and 0.15 m in y (0.3 × 0.15)" in text
     assert "goal positions 0.16 × 0.08 m (0.35 × 0.2); object-goal distances 0.49–0.75 m (0.38–0.82)" in text
     assert "0.08 m (`env.pending_spacing`)" in text and "box jitter ± 0.0 × ± 0.05 m" in text
+    assert "**Not comparable with sections run at Sec. 4.4.3's ranges**" in text  # 0.16 x 0.08 of 0.35 x 0.2
+    wide = runs.assign(goal_span_x_m=[0.43, 0.40], goal_span_y_m=[0.28, 0.2])
+    assert "Not comparable" not in SECTIONS["table_4_1"](wide).markdown
 
 
 def test_table_4_1_says_whether_the_mlp_falls_below_ours_as_in_the_thesis():

@@ -8,6 +8,8 @@ import pandas as pd
 from hrc_lab.report.runs import keyed, setting
 from hrc_lab.report.thesis import thesis_results
 
+NARROWER = 0.8  # goal positions spanning less than this share of Sec. 4.4.3's, in x or y, make a narrower test
+
 
 def conditions_paragraph(runs: pd.DataFrame, goals: str) -> list[str]:
     """Sec. 4.4.3's ranges beside the ones these runs covered (largest over cells and seeds; runs log
@@ -19,8 +21,12 @@ def conditions_paragraph(runs: pd.DataFrame, goals: str) -> list[str]:
     span = runs[["pick_span_x_m", "pick_span_y_m", "goal_span_x_m", "goal_span_y_m"]].max()
     low, high = runs["object_goal_min_m"].min(), runs["object_goal_max_m"].max()
     pick, goal, dist = ref["position_variation_pick_m"], ref["position_variation_goal_m"], ref["object_goal_distance_m"]
+    narrower = span.goal_span_x_m < NARROWER * goal["x"] or span.goal_span_y_m < NARROWER * goal["y"]
     return [
         "",
+        *(["**Not comparable with sections run at Sec. 4.4.3's ranges**: these runs' goal positions span less than "
+           f"{NARROWER:.0%} of the thesis' in x or y (below), a narrower test than the default section's.", ""]
+          if narrower else []),
         f"Test conditions (Sec. 4.4.3's ranges in brackets): picking positions span {span.pick_span_x_m:.2f} m in x "
         f"and {span.pick_span_y_m:.2f} m in y ({pick['x']} × {pick['y']}); goal positions {span.goal_span_x_m:.2f} × "
         f"{span.goal_span_y_m:.2f} m ({goal['x']} × {goal['y']}); object-goal distances {low:.2f}–{high:.2f} m "
