@@ -40,7 +40,7 @@ METHODS = {
     "vmrn": "VMRN",
     "gnn_att_depth": "★ GNN_Att + depth (beyond the thesis)",
     "gnn_transformer": "★ GNN_Transformer (beyond the thesis)",
-    "rule": "the labelling rule as the solver (the learned solvers' ceiling)",
+    "rule": "the labelling rule as the solver, the learned solvers' ceiling",
 }
 COLUMNS = [("train_grasp_acc", "Train_Acc"), ("oa_1", "one type"), ("oa_2", "two types"), ("oa_3", "three types")]
 REQUEST_SIZES = (1, 2, 3)
