@@ -49,6 +49,7 @@ from hrc_lab.training import FixedStepDataModule, RandomState, RunCheckpoint, Su
         ("ch5/fig_5_6", "perception.batch_size=0", "perception.batch_size"),
         ("ch6/table_6_1", "grasp.lr=-1", "grasp.lr"),
         ("ch6/table_6_2_robot", "protocol.max_grasps=0", "protocol.max_grasps"),
+        ("ch6/table_6_2_robot", "protocol.yaw_order=widest", "protocol.yaw_order"),
         ("ch6/table_6_2_robot", "protocol.object_counts=[7]", "protocol.object_counts"),
         ("ch4/table_4_1", "protocol.min_demos=2", "protocol.min_demos"),
         ("ch4/table_4_1", "logger.tracking_uri=nowhere", "logger.tracking_uri"),

@@ -255,6 +255,7 @@ def table_6_2_robot(ctx: RunContext) -> dict[str, float]:
             max_requests=cfg.max_iterations, max_grasps=protocol.max_grasps,
             answer_right=lambda nodes, goal, answer: iterative_correct(fixed, nodes, goal, answer),
             on_decision=on_decision, preshape=protocol.preshape, choose_yaw=protocol.choose_yaw,
+            yaw_order=protocol.yaw_order,
         )
 
     episodes, steps, shown = [], [], None

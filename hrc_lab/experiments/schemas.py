@@ -653,6 +653,9 @@ class Table62RobotProtocol(Table62SingleProtocol):
     # thesis' fixed orientation, 6.3). On 23 picks (scripts/ch6_pregrasp_picks.py) a neighbour moved in 0.04 of them
     # against 0.13 (issue 47 item 2)
     choose_yaw: bool = True
+    # how the clear yaws are ranked: "narrowest" opening first (the pads face the part's sides), or "smallest_turn"
+    # (the rule's yaw whenever it is clear)
+    yaw_order: str = "narrowest"
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -660,6 +663,8 @@ class Table62RobotProtocol(Table62SingleProtocol):
             raise ValueError(f"protocol.max_grasps must be >= 1, got {self.max_grasps}")
         if self.video_objects < 0:
             raise ValueError(f"protocol.video_objects must be >= 0, got {self.video_objects}")
+        if self.yaw_order not in ("narrowest", "smallest_turn"):
+            raise ValueError(f"protocol.yaw_order must be 'narrowest' or 'smallest_turn', got '{self.yaw_order}'")
 
 
 @dataclass

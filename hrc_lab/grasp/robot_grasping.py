@@ -62,7 +62,7 @@ def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[o
                 read: Callable[[SceneNodes, np.ndarray], list[NodeReading]], max_requests: int,
                 max_grasps: int, answer_right: Callable,
                 on_decision: Callable[[RobotStep], None] | None = None, preshape: bool = True,
-                choose_yaw: bool = True) -> RobotEpisode:
+                choose_yaw: bool = True, yaw_order: str = "narrowest") -> RobotEpisode:
     """Algorithm 4 with the robot on ``scene`` (rendered from ``spec``) for the requested type ``goal``.
     ``perceive(scene_now)`` detects and matches (the trained detector,
     :func:`~hrc_lab.grasp.observation.scene_nodes`); ``read(nodes, mask)`` is the solver's reading of every node for
@@ -70,7 +70,8 @@ def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[o
     ``on_decision(step)`` sees each iteration's decision before the robot acts on it (a video's caption);
     ``preshape``: open the fingers only as wide as the named part needs (:meth:`ClutterCell.grasp_opening`), else
     fully; ``choose_yaw``: approach at the yaw whose finger volumes the depth image shows clearest
-    (:meth:`ClutterCell.grasp_yaw`), else with the rule's fingers closing along x."""
+    (:meth:`ClutterCell.grasp_yaw`, the clear yaws ranked by ``yaw_order``), else with the rule's fingers closing
+    along x."""
     cell.place_scene(scene, spec)
     steps: list[RobotStep] = []
     aside = 0
@@ -107,7 +108,7 @@ def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[o
         before = cell.part_poses()[0]
         box = nodes.boxes[answer.grasp]
         if choose_yaw:
-            yaw, half_opening = cell.grasp_yaw(box, now.depth, preshape)
+            yaw, half_opening = cell.grasp_yaw(box, now.depth, preshape, yaw_order)
         else:
             yaw, half_opening = 0.0, cell.grasp_opening(box, now.depth) if preshape else None
         step.yaw_deg = float(np.degrees(yaw))

@@ -35,8 +35,10 @@ def _approach(runs: pd.DataFrame) -> str:
     """At which yaw the gripper comes down (``protocol.choose_yaw``)."""
     value = setting(runs, "protocol.choose_yaw")
     if value.lower() == "true":
-        return ("turned to the yaw, of 12, whose finger volumes the depth image shows clear of neighbours, the "
-                "narrowest opening first (`protocol.choose_yaw`)")
+        first = ("the smallest turn first, the rule's yaw whenever it is clear" if setting(
+            runs, "protocol.yaw_order") == "smallest_turn" else "the narrowest opening first")
+        return ("turned to the yaw, of 12, whose finger volumes the depth image shows clear of neighbours, "
+                f"{first} (`protocol.choose_yaw`, `protocol.yaw_order`)")
     return "its fingers closing along x as the rule's (" + (
         "runs before `protocol.choose_yaw`)" if value == NOT_LOGGED else "`protocol.choose_yaw=false`)")
 

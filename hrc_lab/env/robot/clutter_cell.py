@@ -78,6 +78,7 @@ ORIENTATION_TOLERANCE = 0.03  # rad: a waypoint is reached when the gripper is a
 FINGER_ZONES = ((0.012, 0.0), (0.045, 0.022))
 FINGER_HALF_WIDTH = 0.016  # m across the closing axis
 YAW_CANDIDATES = 12  # approach yaws tried, every 15 degrees over the gripper's half turn of symmetry
+YAW_ORDERS = ("narrowest", "smallest_turn")  # how grasp_yaw ranks the clear yaws
 NARROWEST_BIN = 0.004  # m: of the clear yaws, the narrowest opening (in bins of this) wins, then the smallest turn
 TOP_FACE_BAND = 0.005  # m: pixels of the box this close below the grasp point's height are the part's top face
 
@@ -242,14 +243,18 @@ class ClutterCell(ManipulationEnv):
             self._openings = (commands, np.asarray(halves))
         return self._openings
 
-    def grasp_yaw(self, box: np.ndarray, depth: np.ndarray, preshape: bool = True) -> tuple[float, float | None]:
+    def grasp_yaw(self, box: np.ndarray, depth: np.ndarray, preshape: bool = True,
+                  order: str = "narrowest") -> tuple[float, float | None]:
         """(yaw, half opening): the approach yaw (rad about the vertical, 0 the rule's fingers closing along x) whose
         finger volumes (:data:`FINGER_ZONES`, either side of the grasp point along the closing axis, from the pads'
         inner faces out) the depth image shows clearest of neighbours, and the pre-grasp half opening at it (the
         part's top face's extent along the closing axis plus the rule's ``finger_gap`` and :data:`PRESHAPE_MARGIN`;
         None with ``preshape`` off: fully open). Of the :data:`YAW_CANDIDATES` yaws, those in which nothing rises
-        into a finger volume win, the smallest turn first; when none is clear, the one in which the highest
-        intrusion is lowest."""
+        into a finger volume win, in ``order`` (:data:`YAW_ORDERS`): ``narrowest``, the narrowest opening (so the
+        pads face the part's sides), then the smallest turn; ``smallest_turn``, the smallest turn (the rule's yaw
+        whenever it is clear); when none is clear, the one in which the highest intrusion is lowest."""
+        if order not in YAW_ORDERS:
+            raise ValueError(f"yaw order must be one of {YAW_ORDERS}, got '{order}'")
         point = self.locate(box, depth)
         tips = point[2] - self.spec.grasp_depth
         rows, cols = np.indices(depth.shape)
@@ -275,7 +280,8 @@ class ClutterCell(ManipulationEnv):
                 zone = (across <= FINGER_HALF_WIDTH) & (along >= half) & (along <= half + reach)
                 if zone.any():
                     intrusion = max(intrusion, float(heights[zone].max()) - (tips + rise))
-            key = (max(intrusion, 0.0), round(half / NARROWEST_BIN), abs(yaw))
+            narrowness = round(half / NARROWEST_BIN) if order == "narrowest" else 0
+            key = (max(intrusion, 0.0), narrowness, abs(yaw))
             if best is None or key < best[0]:
                 best = (key, yaw, half if preshape else None)
         if best is None:  # the part is wider than the gripper opens at every yaw
