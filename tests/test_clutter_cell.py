@@ -119,7 +119,7 @@ def test_the_approach_yaw_turns_the_fingers_away_from_a_tall_neighbour(cell):
     crowded = _depth_of_blocks([part, (0.03, 0.06, -0.06, 0.06, 0.07)])
     yaw, half = cell.grasp_yaw(box, crowded)
     assert abs(np.degrees(yaw)) >= 75 and half < 0.03
-    assert cell.grasp_yaw(box, crowded, order="smallest_turn")[0] == yaw  # only a quarter turn is clear
+    assert cell.grasp_yaw(box, crowded, order="narrowest")[0] == yaw  # only about a quarter turn is clear
     with pytest.raises(ValueError, match="yaw order"):
         cell.grasp_yaw(box, crowded, order="widest")
 

@@ -650,12 +650,13 @@ class Table62RobotProtocol(Table62SingleProtocol):
     preshape: bool = True
     # approach each grasp at the yaw (of 12, every 15 degrees) whose finger volumes, the 2F-140's as measured, the depth
     # image shows clearest of neighbours (ClutterCell.grasp_yaw); false: the rule's fingers closing along x (the
-    # thesis' fixed orientation, 6.3). On 23 picks (scripts/ch6_pregrasp_picks.py) a neighbour moved in 0.04 of them
-    # against 0.13 (issue 47 item 2)
+    # thesis' fixed orientation, 6.3). Robot row, 3 seeds: 0.72 / 0.84 / 0.69 / 0.68 against 0.68 / 0.76 / 0.60 /
+    # 0.62 along x (issue 47 item 2, docs/chapters/ch6.md)
     choose_yaw: bool = True
-    # how the clear yaws are ranked: "narrowest" opening first (the pads face the part's sides), or "smallest_turn"
-    # (the rule's yaw whenever it is clear)
-    yaw_order: str = "narrowest"
+    # how the clear yaws are ranked: "smallest_turn" (the rule's yaw whenever it is clear) or "narrowest" opening
+    # first (the pads face the part's sides; robot row 0.66 / 0.79 / 0.66 / 0.69: turning when x was clear found
+    # contacts the depth image did not predict)
+    yaw_order: str = "smallest_turn"
 
     def __post_init__(self) -> None:
         super().__post_init__()
