@@ -21,7 +21,9 @@ part at every yaw and closes to about 19 mm.
   fingers just outside the part, so they come down on neighbours the rule calls clear. With a pre-grasp opening
   (:meth:`ClutterCell.grasp_opening`) the fingers open only to the part's x-extent, seen in the depth image, plus
   the rule's ``finger_gap`` and :data:`PRESHAPE_MARGIN` on each side (the gripper's finger command set from a
-  measured table of openings, :meth:`ClutterCell.finger_openings`). The arm moves
+  measured table of openings, :meth:`ClutterCell.finger_openings`). With an approach yaw
+  (:meth:`ClutterCell.grasp_yaw`) the gripper turns about the vertical before it comes down, to a yaw whose finger
+  volumes the depth image shows clear of neighbours, and turns home once it has let go. The arm moves
   by robosuite's OSC_POSE controller (delta input), driven to each waypoint by a proportional law that also holds
   the gripper's orientation. :meth:`ClutterCell.pick` reports which part rose with the gripper and which other
   parts the gripper touched; :meth:`ClutterCell.put` sets the held part down at a point and opens.
