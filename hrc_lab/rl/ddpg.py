@@ -74,7 +74,7 @@ class HerDDPG(DDPG):
         self.demo_buffer: FilledHerReplayBuffer | None = None
         self._open_demos: dict[int, list[tuple]] = {}  # env index -> the guided episode being collected
         self._statistics_steps = 0  # num_timesteps when the normaliser last took the replay buffer's new rows
-        self._update_sums: dict[str, float] = {}  # per-update diagnostics summed since the last update_diagnostics()
+        self._update_values: dict[str, list[float]] = {}  # per-update diagnostics since update_diagnostics()
         super().__init__(*args, **kwargs)
 
     # --- exploration and storage --------------------------------------------------------------------------------
@@ -178,16 +178,15 @@ class HerDDPG(DDPG):
         return loss
 
     def _accumulate(self, key: str, value: float) -> None:
-        self._update_sums[key] = self._update_sums.get(key, 0.0) + value
-        self._update_sums[f"{key}#"] = self._update_sums.get(f"{key}#", 0.0) + 1
+        self._update_values.setdefault(key, []).append(value)
 
     def update_diagnostics(self) -> dict[str, float]:
         """Means over the gradient steps since the last call (then reset), for the trainer's per-epoch metrics:
         ``critic_loss``, ``target_q`` (the critic's targets), ``q_policy`` (Q(s, pi(s)) the actor climbs),
         ``actor_loss``; with demonstrations ``bc_loss`` (the weighted cloning term) and ``bc_share`` (its share of
         the actor's loss magnitude). A falling ``q_policy`` with a rising ``critic_loss`` is the critic diverging."""
-        sums, self._update_sums = self._update_sums, {}
-        return {key: sums[key] / sums[f"{key}#"] for key in sums if not key.endswith("#")}
+        values, self._update_values = self._update_values, {}
+        return {key: float(np.mean(v)) for key, v in values.items()}
 
     def pretrain_on_demonstrations(self, batch_size: int) -> None:
         """Behaviour cloning alone: ``bc_pretrain_steps`` batches of demonstrations (HER-relabelled goals, as in
@@ -259,4 +258,4 @@ class HerDDPG(DDPG):
             self.logger.record("train/critic_loss", np.mean(critic_losses))
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "demo_buffer", "_open_demos", "_update_sums"]
+        return [*super()._excluded_save_params(), "demo_buffer", "_open_demos", "_update_values"]
