@@ -87,6 +87,25 @@ def test_the_robot_places_beside_the_workers_parts(cell):
     assert cell.assembly() == [("o2", 1), ("o1", 2), ("o1", 3), ("o2", 4), ("o3", 5)] and not cell.collisions
 
 
+def test_return_to_bin_clears_a_position_for_the_right_part(cell):
+    """hrc_lab's recovery: a wrong part goes back to its bin slot, the position is free for the goal's part."""
+    cell.reseed(2)
+    cell.reset()
+    slots = cell.bin_slots.copy()
+    assert cell.human_place("o1", 1).success  # a wrong placement: goal 0 wants o3 on p1
+    index = cell.assembled[1]
+    refused = cell.return_to_bin(2)
+    assert not refused.success and "p2 is free" in refused.reason and refused.steps == 0
+    removal = cell.return_to_bin(1)
+    assert removal.success, removal.reason
+    assert (removal.part, removal.position, removal.index) == ("o1", 1, index) and removal.steps > 0
+    assert cell.part_at(1) is None and index in cell.in_bin("o1")
+    np.testing.assert_allclose(cell.object_positions()[index][:2], slots[index][:2], atol=SPEC.robot.place_tolerance)
+    placement = cell.pick_and_place("o3", 1)
+    assert placement.success, placement.reason
+    assert cell.part_at(1) == "o3" and cell.assembly() == [("o3", 1)] and not cell.collisions
+
+
 def test_layout_errors_name_the_key(compose_config):
     with pytest.raises(ValueError, match=r"env\.robot\.position_spacing"):
         AssemblyCellLayout(position_spacing=0.03)
@@ -96,3 +115,5 @@ def test_layout_errors_name_the_key(compose_config):
         AssembleToOrderConfig(robot=AssemblyCellLayout(bins={"o1": [-0.16, -0.3], "o2": [0.08, -0.3]}))
     with pytest.raises(ConfigError, match=r"env\.robot\.place_tolerance"):
         validate_config(compose_config("experiment=ch5/hrc_session", "env.robot.place_tolerance=0"))
+    with pytest.raises(ConfigError, match=r"protocol\.video_session"):
+        validate_config(compose_config("experiment=ch5/hrc_session", "protocol.video_session=10"))

@@ -179,6 +179,33 @@ def test_pipeline_on_a_short_generated_session():
     assert loop.finished
 
 
+def test_recovery_fixes_a_placement_that_contradicts_the_goal():
+    """hrc_lab's recovery (beyond Algorithm 3): a recorded part the inferred goal does not want on its position is
+    dropped, ``fix`` puts the goal's part there, the loop re-plans, and a position is fixed at most once; without
+    ``fix`` (the thesis' loop) the wrong pair stays."""
+    from hrc_lab.env.robot.settings import AssembleToOrderConfig
+
+    spec = AssembleToOrderConfig()  # goal 0: o3 o1 o1 o1 o2 o2
+    fixes = []
+
+    def fix(position, part):
+        fixes.append((position, part))
+        return part, position
+
+    robot = lambda part, p: (part, p)  # noqa: E731 (a stand-in that places what it is told)
+    thesis = SemanticPlannerLoop(TruthPlanner(spec, 0), robot, echo=None)
+    thesis.run(["o1->p1", "o1->p2"])
+    assert thesis.pairs == [("o1", 1), ("o1", 2)]
+    loop = SemanticPlannerLoop(TruthPlanner(spec, 0), robot, echo=None, fix=fix)
+    first, second = loop.run(["o1->p1", "o1->p2"])
+    assert fixes == [(1, "o3")] and loop.pairs == [("o3", 1), ("o1", 2)] and loop.contradictions(0) == []
+    assert [(r.wrong, r.goal, r.wanted, r.placed) for r in first.recoveries] == [(("o1", 1), 0, "o3", ("o3", 1))]
+    assert first.replan is not None and "recovery: p1 holds o1, goal g0 needs o3" in first.describe()
+    assert second.recoveries == [] and second.replan is None
+    loop.run(["o2->p1"])  # the same position contradicts again: it is not fixed a second time
+    assert fixes == [(1, "o3")] and ("o2", 1) in loop.pairs
+
+
 def test_the_loop_drives_the_robot_cell_on_a_short_session(monkeypatch):
     """Algorithm 3 with the robot (issue 21), oracle action detector: the worker's placement appears in the cell,
     the screw makes the robot pick and place the expert's part, the session ends with the goal assembled, and

@@ -123,6 +123,7 @@ def assembly_sessions(ctx: RunContext, with_robot: bool) -> dict[str, float]:
     planner = train_planner(ctx.cfg.reasoning, spec, [everything[j] for j in chosen], ctx.trainer, ctx.seed,
                             prefix="planner")
     cell, view = robot_cell(ctx, render=protocol.video) if with_robot else (None, None)
+    filmed_session = protocol.video_session if with_robot else 0
     rows, results = [], {"normal": [], "fast": []}
     total = protocol.sessions + protocol.fast_sessions
     for i in tqdm(range(total), desc=f"sessions {spec.cell}", unit="session"):
@@ -130,11 +131,12 @@ def assembly_sessions(ctx: RunContext, with_robot: bool) -> dict[str, float]:
         goal = int(rng.integers(spec.n_goals))
         seed = int(rng.integers(2**31))
         clip, steps = render_session(spec, spec.video, goal, seed, protocol.p_screw, fast)
-        annotated = [] if i == 0 else None
+        filmed = i == filmed_session
+        annotated = [] if filmed else None
         if cell is not None:
             cell.reset()
         result = run_session(detector, planner, spec, clip, steps, goal, protocol.tracker_complexity, annotated,
-                             cell, view if i == 0 else None)
+                             cell, view if filmed else None, recovery=with_robot and protocol.recovery)
         results["fast" if fast else "normal"].append(result)
         rows.append({"session": i, "fast": fast, "goal": goal, "frames": len(clip.frames),
                      **{f"{k}_acc": np.mean(result[k]) if result[k] else np.nan for k in ("ad", "sg", "sc")},
@@ -185,15 +187,20 @@ def robot_cell(ctx: RunContext, render: bool):
 
 
 def robot_row(result: dict) -> dict:
-    """One session's robot columns: commands, refusals, placements, whether the goal was assembled, and every
-    reason the robot asked for help (refused or failed commands, refused human placements)."""
+    """One session's robot columns: commands, refusals, placements, recoveries (with ``protocol.recovery``), whether
+    the goal was assembled, and every reason the robot asked for help (refused or failed commands, refused human
+    placements, failed removals)."""
     placements = result["placements"]
     executed = [p for p in placements if p.steps]
     return {"robot_commands": len(placements), "robot_refused": len(placements) - len(executed),
             "robot_placed": sum(p.success for p in executed), "human_placed": sum(p.success for p in result["human"]),
+            "recoveries": len(result["recoveries"]),
+            "recovered": sum(r.placed is not None for r in result["recoveries"]),
+            "recovery_log": " | ".join(r.describe() for r in result["recoveries"]),
             "complete": result["complete"], "assembly": " ".join(f"{o}@p{p}" for o, p in result["assembly"]),
             "help": [f"robot {p.part}->p{p.position}: {p.reason}" for p in placements if not p.success]
-            + [f"human {p.part}->p{p.position}: {p.reason}" for p in result["human"] if not p.success]}
+            + [f"human {p.part}->p{p.position}: {p.reason}" for p in result["human"] if not p.success]
+            + [f"removal {p.part} off p{p.position}: {p.reason}" for p in result["removals"] if not p.success]}
 
 
 def robot_metrics(results: list[dict]) -> dict[str, float]:
@@ -206,6 +213,7 @@ def robot_metrics(results: list[dict]) -> dict[str, float]:
         "robot_placement_sr": float(np.mean([p.success for p in executed])) if executed else nan,
         "robot_refused_rate": (len(placements) - len(executed)) / len(placements) if placements else nan,
         "robot_commands": float(len(placements)),
+        "recoveries_per_session": float(np.mean([len(r["recoveries"]) for r in results])) if results else nan,
         "complete_rate": float(np.mean([r["complete"] for r in results])) if results else nan,
     }
 

@@ -3,7 +3,8 @@ and the side-by-side video of the worker and the cell.
 
 :class:`CellHands` gives :class:`~hrc_lab.reasoning.hrc_loop.SemanticPlannerLoop` its ``robot`` (PickandPlace in the
 :class:`~hrc_lab.env.robot.assembly_cell.AssemblyCell`; a refused or failed command asks for help and returns
-nothing placed) and its ``human`` (the worker's recorded placement appears in the cell), and keeps what happened.
+nothing placed), its ``human`` (the worker's recorded placement appears in the cell) and, with recovery, its
+``fix`` (clear a position and place the goal's part), and keeps what happened.
 :class:`SideBySide` composes the worker's annotated frame with the rendered cell.
 """
 
@@ -64,6 +65,7 @@ class CellHands:
         self.cell, self.side = cell, side
         self.placements: list[Placement] = []
         self.human_placements: list[Placement] = []
+        self.removals: list[Placement] = []  # parts the recovery took back to their bins
         self.latency_s: list[float] = []
         self._frame_t = time.perf_counter()
 
@@ -85,6 +87,25 @@ class CellHands:
             log.info("robot asks for help: PickandPlace(%s, p%d): %s", part, position, placement.reason)
         return (part, position) if placement.success else None
 
+    def fix(self, position: int, part: str) -> tuple[str, int] | None:
+        """hrc_lab's recovery (:class:`~hrc_lab.reasoning.hrc_loop.SemanticPlannerLoop`): make ``part`` sit on
+        ``position``: the robot returns the part there to its bin (if another), then places ``part``. What the
+        position holds afterwards, or None when a step failed (the robot asks for help)."""
+        if self.cell.part_at(position) == part:
+            return part, position
+        if self.cell.part_at(position) is not None:
+            observer = self.side.robot_step if self.side is not None else None
+            removal = self.cell.return_to_bin(position, observer=observer)
+            self.removals.append(removal)
+            if self.side is not None:
+                self.side.caption = f"robot: recovery, {removal.part} off p{position} " + (
+                    "done" if removal.success else f"help: {removal.reason}")
+                self.side.refresh()
+            if not removal.success:
+                log.info("robot asks for help: clearing p%d: %s", position, removal.reason)
+                return None
+        return self.robot(part, position)
+
     def human(self, part: str, position: int) -> None:
         """The worker placed ``part`` on ``position`` (as the loop recorded it)."""
         placement = self.cell.human_place(part, position)
@@ -99,5 +120,5 @@ class CellHands:
         (the part type at p1, p2, ...)."""
         target = [(part, p) for p, part in enumerate(goal, start=1)]
         assembly = self.cell.assembly()
-        return {"placements": self.placements, "human": self.human_placements, "latency_s": self.latency_s,
-                "assembly": assembly, "complete": assembly == target}
+        return {"placements": self.placements, "human": self.human_placements, "removals": self.removals,
+                "latency_s": self.latency_s, "assembly": assembly, "complete": assembly == target}

@@ -54,7 +54,7 @@ def checkpoints(clip: Clip, steps: list[SessionStep]) -> list[tuple[SessionStep,
 
 def run_session(detector: ActionDetector, planner, spec: AssembleToOrderSpec, clip: Clip, steps: list[SessionStep],
                 goal: int, complexity: int, annotated: list | None = None, cell: AssemblyCell | None = None,
-                cell_view: FrameRecorder | None = None) -> dict:
+                cell_view: FrameRecorder | None = None, recovery: bool = False) -> dict:
     """Stream one session through Algorithm 3 and score it: AD per window (majority label of its frames), SG at
     the end of the gap after every human placement (the guidance on screen against the truth), SC per screw (the
     first control command issued during it).
@@ -66,7 +66,12 @@ def run_session(detector: ActionDetector, planner, spec: AssembleToOrderSpec, cl
     :class:`~hrc_lab.env.robot.assembly_cell.Placement` of each), ``latency_s`` (per executed command, from the
     start of the frame whose window triggered it to the robot's first motion command), the final ``assembly`` and
     ``complete`` (the bracket holds the goal). ``annotated`` with ``cell_view`` (a renderer of the cell): the
-    worker's annotated frame beside the cell, and the robot's motion as extra frames while the worker's is held."""
+    worker's annotated frame beside the cell, and the robot's motion as extra frames while the worker's is held.
+    ``recovery`` (with ``cell``; hrc_lab's, beyond Algorithm 3): the loop fixes recorded placements that contradict
+    its inferred goal (:class:`~hrc_lab.reasoning.hrc_loop.SemanticPlannerLoop`); the result's ``recoveries``
+    lists them and ``removals`` the parts the robot took back to their bins."""
+    if recovery and cell is None:
+        raise ValueError("recovery needs the robot cell: it is the robot that fixes a placement")
     cfg = detector.cfg
     marks = checkpoints(clip, steps)
     robot_jobs = {start: step.robot for step, start, _ in marks if step.kind == "screw"}
@@ -79,7 +84,7 @@ def run_session(detector: ActionDetector, planner, spec: AssembleToOrderSpec, cl
     side = SideBySide(cell_view, annotated) if cell_view is not None and annotated is not None else None
     hands = CellHands(cell, side) if cell is not None else None
     loop = SemanticPlannerLoop(planner, hands.robot if hands else video_robot, echo=None,
-                               human=hands.human if hands else None)
+                               human=hands.human if hands else None, fix=hands.fix if recovery else None)
     stream = WindowStream(cfg.window, cfg.crop_size, cfg.frame_size, cfg.frame_stride)
     with HandTracker(model_complexity=complexity) as tracker:
         pipeline = ActionPipeline(detector, action_labels(spec), tracker, stream, loop)
@@ -116,5 +121,6 @@ def run_session(detector: ActionDetector, planner, spec: AssembleToOrderSpec, cl
         labels = [x for x in clip.labels[window.start : window.end] if x != "none"]
         if labels:
             ad.append(window.label == max(set(labels), key=labels.count))
-    result = {"ad": ad, "sg": sg, "sc": sc, "tracking_s": state.tracking_s, "classify_s": state.classify_s}
+    result = {"ad": ad, "sg": sg, "sc": sc, "tracking_s": state.tracking_s, "classify_s": state.classify_s,
+              "recoveries": [r for _, event in state.events for r in event.recoveries]}
     return {**result, **hands.result(spec.goal(goal))} if hands is not None else result

@@ -9,18 +9,42 @@ issue feeds it the same labels from video.
 
 ``human`` (optional) hears of every human placement the loop records, e.g. the robot cell, which puts the part
 there (:meth:`hrc_lab.env.robot.assembly_cell.AssemblyCell.human_place`).
+
+``fix`` (optional; hrc_lab's recovery, beyond Algorithm 3, which never corrects a placement): after every plan, a
+recorded pair that contradicts the inferred goal (the goal wants another part type on that position; two parts
+recorded on one position) is dropped and ``fix(position, part)`` makes the goal's part sit there (the robot
+clears the position and places it); the loop says so and plans again (the event's ``replan``). Each position is fixed at most once per
+session, so a wrong goal guess cannot start a loop of removals.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from hrc_lab.env.assembly.spec import FINISHED, SCREW, AssembleToOrderSpec, parse_assembly, plan_text
 from hrc_lab.reasoning.semantic_planner import Plan, SemanticPlanner
 
 #: PickandPlace(part, position) -> the (part, position) the robot actually placed, or None if it placed nothing
 PickAndPlace = Callable[[str, int], tuple[str, int] | None]
+#: Fix(position, part) -> the (part, position) now on that position, or None if the robot could not fix it
+Fix = Callable[[int, str], tuple[str, int] | None]
+
+
+@dataclass
+class Recovery:
+    """One fix: the recorded pair that contradicted goal ``goal``, the part the goal wants there, and what the
+    position holds after the fix (None: the fix failed)."""
+
+    wrong: tuple[str, int]
+    goal: int
+    wanted: str
+    placed: tuple[str, int] | None
+
+    def describe(self) -> str:
+        part, position = self.wrong
+        outcome = f"now {self.placed[0]} on p{self.placed[1]}" if self.placed else "the robot could not fix it"
+        return f"recovery: p{position} holds {part}, goal g{self.goal} needs {self.wanted} there -> {outcome}"
 
 
 @dataclass
@@ -28,6 +52,8 @@ class LoopEvent:
     label: str
     plan: Plan
     command: tuple[str, int] | None = None  # the PickandPlace call made on a screw event
+    recoveries: list[Recovery] = field(default_factory=list)
+    replan: Plan | None = None  # the plan after the recoveries (``plan`` stays the one the event acted on)
 
     def describe(self) -> str:
         guidance = " | ".join(plan_text(tokens) for tokens in self.plan.guidance.values())
@@ -37,7 +63,10 @@ class LoopEvent:
             text += (
                 f" -> PickandPlace({self.command[0]}, p{self.command[1]})" if self.command else " -> nothing to place"
             )
-        return text
+        lines = [text, *(r.describe() for r in self.recoveries)]
+        if self.replan is not None:
+            lines.append(f"re-planned: goal g{self.replan.goal} | control: {plan_text(self.replan.control)}")
+        return "\n".join(lines)
 
 
 class SemanticPlannerLoop:
@@ -47,13 +76,16 @@ class SemanticPlannerLoop:
         robot: PickAndPlace,
         echo: Callable[[str], None] | None = print,
         human: Callable[[str, int], object] | None = None,
+        fix: Fix | None = None,
     ) -> None:
         self.planner = planner
         self.spec: AssembleToOrderSpec = planner.spec
         self.robot = robot
         self.human = human
+        self.fix = fix
         self.echo = echo
         self.pairs: list[tuple[str, int]] = []
+        self.fixed: set[int] = set()  # positions fixed so far (at most once each)
 
     @property
     def assembled(self) -> set[int]:
@@ -82,9 +114,32 @@ class SemanticPlannerLoop:
                     self.pairs.append(placed)
         else:
             return None
+        if self.fix is not None:
+            self._recover(event)
         if self.echo:
             self.echo(event.describe())
         return event
+
+    def contradictions(self, goal: int) -> list[tuple[str, int]]:
+        """The recorded pairs goal ``goal`` does not have: another part type on their position."""
+        wanted = self.spec.goal(goal)
+        return [(part, position) for part, position in self.pairs if wanted[position - 1] != part]
+
+    def _recover(self, event: LoopEvent) -> None:
+        """Fix every contradiction of the event's inferred goal once per position, then plan again."""
+        goal = event.plan.goal
+        for part, position in self.contradictions(goal):
+            if position in self.fixed:
+                continue
+            self.fixed.add(position)
+            wanted = self.spec.goal(goal)[position - 1]
+            self.pairs = [pair for pair in self.pairs if pair[1] != position]
+            placed = self.fix(position, wanted)
+            if placed is not None:
+                self.pairs.append(placed)
+            event.recoveries.append(Recovery((part, position), goal, wanted, placed))
+        if event.recoveries:
+            event.replan = self.planner.plan([self.pairs])[0]
 
     def run(self, labels: Iterable[str]) -> list[LoopEvent]:
         events = [self.step(label) for label in labels]

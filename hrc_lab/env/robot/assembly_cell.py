@@ -17,6 +17,8 @@ type (the thesis notes that other part shapes would need their own grasping stra
 - :meth:`AssemblyCell.human_place` is the worker's side: there is no human model, so when the perception
   pipeline records a human placement the part appears at its position (taken from its bin), and the robot works
   around it.
+- :meth:`AssemblyCell.return_to_bin` takes a part off the bracket and back into its bin slot: hrc_lab's recovery
+  from a wrong placement (``protocol.recovery``, not in Algorithm 3).
 """
 
 from __future__ import annotations
@@ -193,9 +195,38 @@ class AssemblyCell(HRCCell):
         reason = self.refusal(part, position)
         if reason:
             return Placement(part, position, False, reason)
-        start, started, collisions = time.perf_counter(), float("nan"), len(self.collisions)
         index = self.in_bin(part)[0]
-        target = self.position_pose(position, part)
+        placement = self._carry(index, self.position_pose(position, part), part, position, f"p{position}",
+                                max_steps, observer)
+        if placement.success:
+            self.assembled[position] = index
+        return placement
+
+    def part_at(self, position: int) -> str | None:
+        """The part type on ``position``, or None when it is free."""
+        index = self.assembled.get(position)
+        return None if index is None else self.part_types[index]
+
+    def return_to_bin(self, position: int, max_steps: int = 400,
+                      observer: Callable[[int], None] | None = None) -> Placement:
+        """The robot takes the part off ``position`` and puts it back into its bin slot (hrc_lab's recovery from
+        a wrong placement, :class:`~hrc_lab.reasoning.hrc_loop.SemanticPlannerLoop`; not in Algorithm 3). The
+        :class:`Placement` names the part and the position it cleared; refused when the position is free."""
+        index = self.assembled.get(position)
+        if index is None:
+            return Placement("", position, False, f"p{position} is free")
+        part = self.part_types[index]
+        placement = self._carry(index, self.bin_slots[index], part, position, f"its {part} bin", max_steps,
+                                observer)
+        if placement.success:
+            del self.assembled[position]
+        return placement
+
+    def _carry(self, index: int, target: np.ndarray, part: str, position: int, where: str, max_steps: int,
+               observer: Callable[[int], None] | None) -> Placement:
+        """The scripted expert moves cell object ``index`` to rest at ``target`` (its centre); scored like a
+        placement: released, within ``place_tolerance`` in x-y, resting at the target's height, no collision."""
+        start, started, collisions = time.perf_counter(), float("nan"), len(self.collisions)
         self._plan = [index]
         self.goals[index] = target
         expert, steps, reason = ScriptedExpert(self), 0, ""
@@ -225,10 +256,8 @@ class AssemblyCell(HRCCell):
         if not reason and len(self.collisions) > collisions:
             reason = f"collision ({self.collisions[collisions]})"
         if not reason and error > self.layout.place_tolerance:
-            reason = f"the part ended {error * 100:.1f} cm from p{position}"
+            reason = f"the part ended {error * 100:.1f} cm from {where}"
         if not reason and abs(placed[2] - target[2]) > 0.01:
-            reason = f"the part does not rest on p{position} (height off by {(placed[2] - target[2]) * 100:.1f} cm)"
-        if not reason:
-            self.assembled[position] = index
+            reason = f"the part does not rest on {where} (height off by {(placed[2] - target[2]) * 100:.1f} cm)"
         return Placement(part, position, not reason, reason, index, steps, steps / self.control_freq,
                          time.perf_counter() - start, error, started)
