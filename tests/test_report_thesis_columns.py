@@ -160,4 +160,4 @@ def test_hrc_session_renders_a_goal_count_the_thesis_has_no_column_for(monkeypat
     section = build("hrc_session", ch5_runs(["2goals", "4goals"]))
     assert row_of(section.markdown, "| 2 |").startswith("| 2 | 1 | 5 | 90.0 (97.7 ± 2.1) |")
     assert row_of(section.markdown, "| 4 |").startswith("| 4 | 1 | 5 | 90.0 (–) | 80.0 (–) |")
-    assert "the first session of `2goals`" in section.markdown
+    assert "session 0 of `2goals`" in section.markdown

@@ -123,28 +123,45 @@ def assembly_sessions(ctx: RunContext, with_robot: bool) -> dict[str, float]:
     planner = train_planner(ctx.cfg.reasoning, spec, [everything[j] for j in chosen], ctx.trainer, ctx.seed,
                             prefix="planner")
     cell, view = robot_cell(ctx, render=protocol.video) if with_robot else (None, None)
-    filmed_session = protocol.video_session if with_robot else 0
-    rows, results = [], {"normal": [], "fast": []}
+    recovery = with_robot and protocol.recovery
+    # the filmed session: Table 5.2's first; with the robot protocol.video_session, or (null) the first that shows
+    # the loop recovering and ending assembled when protocol.recovery is on, replayed with the renderer
+    wanted = protocol.video_session if with_robot else 0
+    if wanted is None and not recovery:
+        wanted = 0
+    film = protocol.video if with_robot else True
+    rows, results, played = [], {"normal": [], "fast": []}, []
     total = protocol.sessions + protocol.fast_sessions
+
+    def play(goal: int, seed: int, clip: Clip, steps: list, annotated: list | None) -> dict:
+        if cell is not None:  # each session's cell from the session's seed, so that it can be replayed
+            cell.reseed(seed)
+            cell.reset()
+        return run_session(detector, planner, spec, clip, steps, goal, protocol.tracker_complexity, annotated,
+                           cell, view if annotated is not None else None, recovery=recovery)
+
     for i in tqdm(range(total), desc=f"sessions {spec.cell}", unit="session"):
         fast = i >= protocol.sessions
         goal = int(rng.integers(spec.n_goals))
         seed = int(rng.integers(2**31))
         clip, steps = render_session(spec, spec.video, goal, seed, protocol.p_screw, fast)
-        filmed = i == filmed_session
-        annotated = [] if filmed else None
-        if cell is not None:
-            cell.reset()
-        result = run_session(detector, planner, spec, clip, steps, goal, protocol.tracker_complexity, annotated,
-                             cell, view if filmed else None, recovery=with_robot and protocol.recovery)
+        played.append((goal, seed, fast))
+        frames = [] if i == wanted and film else None
+        result = play(goal, seed, clip, steps, frames)
         results["fast" if fast else "normal"].append(result)
         rows.append({"session": i, "fast": fast, "goal": goal, "frames": len(clip.frames),
                      **{f"{k}_acc": np.mean(result[k]) if result[k] else np.nan for k in ("ad", "sg", "sc")},
                      **{f"n_{k}": len(result[k]) for k in ("ad", "sg", "sc")},
                      **(robot_row(result) if cell is not None else {})})
-        if annotated:
-            log_session_media(ctx, annotated, clip, spec.video.fps, "session_side_by_side" if view else
+        if frames is not None:
+            log_session_media(ctx, frames, clip, spec.video.fps, "session_side_by_side" if view else
                               "session_annotated")
+    if wanted is None and film:  # replay the first session that recovered and ended assembled
+        wanted = next((row["session"] for row in rows if row["recoveries"] and row["complete"]), 0)
+        goal, seed, fast = played[wanted]
+        clip, steps = render_session(spec, spec.video, goal, seed, protocol.p_screw, fast)
+        play(goal, seed, clip, steps, frames := [])
+        log_session_media(ctx, frames, clip, spec.video.fps, "session_side_by_side")
     ctx.tracker.log_table(pd.DataFrame(rows), "hrc_sessions" if with_robot else "table_5_2_sessions")
     if cell is not None:
         failures = [{"session": row["session"], "reason": reason} for row in rows for reason in row["help"]]
@@ -162,6 +179,7 @@ def assembly_sessions(ctx: RunContext, with_robot: bool) -> dict[str, float]:
     metrics["classify_ms"] = 1e3 * float(np.median([t for r in every for t in r["classify_s"]]))
     metrics["n_sessions"] = float(protocol.sessions)
     metrics["n_fast_sessions"] = float(protocol.fast_sessions)
+    metrics["filmed_session"] = float(wanted) if film else float("nan")
     if cell is not None:
         latency = [t for r in every for t in r["latency_s"]]
         moved = [p for r in every for p in r["placements"] if p.steps]

@@ -220,19 +220,21 @@ class AnnotateProtocol(ActionClipsProtocol):
 @dataclass
 class HRCSessionProtocol(Table52Protocol):
     """The HRC loop with the robot cell: Table 5.2's sessions, each Semantic Control command executed by
-    PickandPlace in the cell; ``video``: session ``video_session`` (0: the first) as a side-by-side video (worker |
-    robot cell). ``recovery`` (hrc_lab's, beyond Algorithm 3; off for the thesis' rows): when the assembly
-    contradicts the inferred goal (a part on a position the goal wants another type on, or a worker's placement
+    PickandPlace in the cell; ``video``: one session as a side-by-side video (worker | robot cell), session
+    ``video_session``, or (null) the first session, or with ``recovery`` the first in which the loop recovered and
+    that ended assembled (replayed with the renderer: each session's cell is reset from the session's own seed).
+    ``recovery`` (hrc_lab's, beyond Algorithm 3; off for the thesis' rows): when the assembly contradicts the
+    inferred goal (a part on a position the goal wants another type on, or a worker's placement
     on a position the cell holds another part on), the loop says so and the robot clears that position and
     places the goal's part there (:class:`~hrc_lab.reasoning.hrc_loop.SemanticPlannerLoop`)."""
 
     video: bool = True
-    video_session: int = 0
+    video_session: int | None = None
     recovery: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if not 0 <= self.video_session < self.sessions + self.fast_sessions:
+        if self.video_session is not None and not 0 <= self.video_session < self.sessions + self.fast_sessions:
             raise ValueError(f"protocol.video_session must name one of the {self.sessions + self.fast_sessions} "
                              f"sessions (0..{self.sessions + self.fast_sessions - 1}), got {self.video_session}")
 

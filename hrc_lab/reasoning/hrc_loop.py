@@ -13,8 +13,8 @@ there (:meth:`hrc_lab.env.robot.assembly_cell.AssemblyCell.human_place`).
 ``fix`` (optional; hrc_lab's recovery, beyond Algorithm 3, which never corrects a placement): after every plan, a
 recorded pair that contradicts the inferred goal (the goal wants another part type on that position; two parts
 recorded on one position) is dropped and ``fix(position, part)`` makes the goal's part sit there (the robot
-clears the position and places it); the loop says so and plans again (the event's ``replan``). Each position is fixed at most once per
-session, so a wrong goal guess cannot start a loop of removals.
+clears the position and places it); the loop says so and plans again (the event's ``replan``). Each position is
+fixed at most once per session, so a wrong goal guess cannot start a loop of removals.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from hrc_lab.report.runs import amount, over_seeds, run_tables, spread
+from hrc_lab.report.runs import amount, over_seeds, run_tables, setting, spread
 from hrc_lab.report.sections import Section, register_section
 from hrc_lab.report.thesis import fmt, markdown_table, thesis_cells, thesis_fmt, thesis_results
 
@@ -35,8 +35,32 @@ def per_cell(runs: pd.DataFrame, suffix: str, with_thesis: bool) -> tuple[list[d
             row[title] = fmt(mean, std, 1)
             records.append({"goals": goals, "sessions": suffix or "normal", "metric": metric, "mean": mean,
                             "std": std})
+        if recovering(runs):
+            mean, std = spread(part, "recoveries_per_session" + suffix)
+            row["recoveries / session"] = fmt(mean, std, 2)
+            records.append({"goals": goals, "sessions": suffix or "normal", "metric": "recoveries_per_session",
+                            "mean": mean, "std": std})
         rows.append(row)
     return rows, records
+
+
+def recovering(runs: pd.DataFrame) -> bool:
+    """Whether the runs' loop recovered from contradicting placements (``protocol.recovery``, hrc_lab's)."""
+    return setting(runs, "protocol.recovery") == "True"
+
+
+def recovery_text(sessions: pd.DataFrame) -> str:
+    """What the recovery did: how many fixes, in how many sessions, and how those sessions ended."""
+    if "recoveries" not in sessions or not len(sessions):
+        return ""
+    fixed = sessions[sessions.recoveries > 0]
+    return (f"**Recovery** (`protocol.recovery=true`, hrc_lab's, beyond Algorithm 3): after every plan, a recorded "
+            "part the inferred goal does not want on its position (or a second part recorded on a position) is "
+            "named, the robot takes the part there back to its bin and places the goal's part, and the loop plans "
+            "again; each position at most once per session. Here "
+            f"{int(sessions.recoveries.sum())} fixes in {len(fixed)} of {len(sessions)} sessions "
+            f"({int(fixed.recovered.sum())} carried out); {int(fixed.complete.sum())} of those {len(fixed)} sessions "
+            "ended assembled.")
 
 
 @register_section("hrc_session")
@@ -81,6 +105,8 @@ def hrc_session(runs: pd.DataFrame) -> Section:
         "",
         cause,
         "",
+        recovery_text(sessions) if recovering(runs) else "",
+        "",
         "Placements the cell refused or that failed (all sessions; `robot`: a command the robot could not carry "
         "out, so it asked for help; `human`: a placement the loop recorded that the cell could not hold, e.g. a "
         "position a wrong earlier step had filled; part types and positions generalised):",
@@ -95,15 +121,23 @@ def hrc_session(runs: pd.DataFrame) -> Section:
         f"{fmt(*spread(runs, 'pick_place_sim_s'), 2)} s of simulated time "
         f"({fmt(*spread(runs, 'pick_place_wall_s'), 2)} s of wall clock).",
     ]
-    # the video: the first session of the first run (by goal count, seed) whose first session ended assembled
+    # the video: the filmed session (protocol.video_session; older runs filmed session 0) of the first run (by goal
+    # count, seed) whose filmed session ended assembled, with a recovery in it when the loop recovered
+    filmed = dict(zip(runs.run_id, runs.get("filmed_session", pd.Series(0.0, index=runs.index)).fillna(0)))
+    wanted = sessions[sessions.session == sessions.run_id.map(filmed)] if len(sessions) else sessions
+    good = wanted[wanted.complete.astype(bool) & ((wanted.recoveries > 0) if recovering(runs) else True)]
+    shown_ok = set(good.run_id)
     ordered = runs.sort_values(["cell", "seed"])
-    first_ok = sessions[(sessions.session == 0) & sessions.complete.astype(bool)] if len(sessions) else sessions
-    assembled = set(first_ok.run_id)
-    shown = next((r for r in ordered.itertuples() if r.run_id in assembled), next(ordered.itertuples()))
-    outcome = "it ends assembled" if shown.run_id in assembled else "no first session ended assembled"
-    text.append(f"The video ([hrc_session.mp4](ch5_hrc/hrc_session.mp4)): the first session of `{shown.cell}`, seed "
-                f"{shown.seed} ({outcome}); the worker's view with what the system saw and said, beside the robot "
-                "cell with its last command.")
+    shown = next((r for r in ordered.itertuples() if r.run_id in shown_ok), next(ordered.itertuples()))
+    what = "with a recovery, " if recovering(runs) else ""
+    outcome = f"{what}it ends assembled" if shown.run_id in shown_ok else f"no filmed session ended {what}assembled"
+    log = ""
+    if recovering(runs) and len(wanted):
+        lines = wanted.recovery_log[wanted.run_id == shown.run_id].fillna("")
+        log = f" The loop said: \"{lines.iloc[0]}\"." if len(lines) and lines.iloc[0] else ""
+    text.append(f"The video ([hrc_session.mp4](ch5_hrc/hrc_session.mp4)): session {int(filmed[shown.run_id])} of "
+                f"`{shown.cell}`, seed {shown.seed} ({outcome}); the worker's view with what the system saw and said, "
+                f"beside the robot cell with its last command.{log}")
     artifacts = {"hrc_session.mp4": (shown.run_id, "videos/session_side_by_side.mp4")}
     return Section("The HRC loop with the robot: Table 5.2 extended", "\n".join(text),
                    pd.DataFrame(records + fast_records), {}, artifacts)
