@@ -95,6 +95,14 @@ def check_search_space(config: DictConfig) -> None:
             raise ConfigError(f"{where}: impossible range: {bad}")
 
 
+def maximizes_by_default(config: DictConfig) -> bool:
+    """Whether a study optimises the default objective (no search file, ``sr``: a success rate) with no direction
+    given on the command line: Optuna's default direction, minimize, would look for the worst settings."""
+    given = any(str(item).startswith("hydra.sweeper.direction=") for item in config.hydra.overrides.hydra)
+    return not given and (config.get("search") or {}).get("name", "none") == "none" and objective_of(config) == \
+        DEFAULT_OBJECTIVE
+
+
 class StudyCallback(Callback):
     """Hydra callback of every sweep; acts under the Optuna sweeper only (module docstring)."""
 
@@ -110,6 +118,8 @@ class StudyCallback(Callback):
         # tagged with (each job computes the same from its own config, study_name()).
         with read_write(config.hydra):
             config.hydra.sweeper.study_name = study_name(config.hydra)
+            if maximizes_by_default(config):
+                config.hydra.sweeper.direction = "maximize"
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
         if not is_optuna(config.hydra):

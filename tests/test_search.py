@@ -58,6 +58,24 @@ def test_the_cli_exits_2_naming_the_bad_key_before_any_trial(cli_env, console_sc
     assert not (tmp_path / "runs" / "mlflow.db").exists()
 
 
+def test_a_study_of_the_default_objective_maximises_it(compose_config):
+    """Without a search file a trial reports its success rate (``sr``): the study maximises it unless the command
+    line gives a direction (Optuna's default, minimize, looked for the worst settings)."""
+    from hrc_lab.search import StudyCallback
+
+    def direction(*overrides):
+        config = compose_config("experiment=ch4/table_4_1_quick", "hydra/sweeper=optuna", *overrides,
+                                return_hydra_config=True)
+        config.hydra.overrides.hydra = [o for o in overrides if o.startswith("hydra.")]
+        config.hydra.sweep.dir = "sweep"
+        StudyCallback().on_multirun_start(config)
+        return str(config.hydra.sweeper.direction)
+
+    assert direction().endswith("maximize")
+    assert direction("hydra.sweeper.direction=minimize").endswith("minimize")
+    assert direction("search.objective=collision_rate").endswith("minimize")
+
+
 def test_a_trial_is_a_variant_of_its_own():
     """Under the Optuna sweeper no key is a grid key: a trial's sampled values always make a variant."""
     trial = ["rl.learning_rate=0.001", "seed=0", "experiment=rl/fetch", "search=rl_fetch"]
