@@ -4,6 +4,7 @@ held-out scenes, the deterministic policy) and splits |P_obj - P_goal| into the 
 also how many episodes held the part, moved it more than 2 cm, or collided. Prints one row per (scenario, lambda).
 
     .venv/bin/python scripts/rl_final_policies.py 2026-12-02_06-55-00 [--tracking-uri URI] [--episodes 10]
+        [--per-episode]
 
 A run id instead of a sweep replays that run's saved agents whatever its status (e.g. a long run's latest
 checkpoint, on the held-out scenes of its configured last epoch).
@@ -38,6 +39,8 @@ def main() -> None:
     parser.add_argument("sweep", help="the sweep's folder name (MLflow tag `sweep`), or one MLflow run id")
     parser.add_argument("--tracking-uri", default="sqlite:///runs/mlflow.db")
     parser.add_argument("--episodes", type=int, default=10, help="evaluation episodes per agent")
+    parser.add_argument("--per-episode", action="store_true",
+                        help="also print every episode's position error, sorted (how far the failures are)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
@@ -78,6 +81,10 @@ def main() -> None:
         "collided": groups.collided.mean(),
     })
     print(table.round(3).reset_index().to_markdown(index=False))
+    if args.per_episode:
+        for (scenario, lam), group in groups:
+            errors = " ".join(f"{100 * e:.2f}" for e in sorted(group.position_m))
+            print(f"{scenario}, lambda {lam:g}: position error per episode (cm, sorted): {errors}")
 
 
 if __name__ == "__main__":
