@@ -181,8 +181,8 @@ def test_pipeline_on_a_short_generated_session():
 
 def test_recovery_fixes_a_placement_that_contradicts_the_goal():
     """hrc_lab's recovery (beyond Algorithm 3): a recorded part the inferred goal does not want on its position is
-    dropped, ``fix`` puts the goal's part there, the loop re-plans, and a position is fixed at most once; without
-    ``fix`` (the thesis' loop) the wrong pair stays."""
+    dropped, ``fix`` puts the goal's part there, the loop re-plans, and a position is fixed at most once; a worker's
+    part recorded twice on one position is re-read; without ``fix`` (the thesis' loop) the wrong pairs stay."""
     from hrc_lab.env.robot.settings import AssembleToOrderConfig
 
     spec = AssembleToOrderConfig()  # goal 0: o3 o1 o1 o1 o2 o2
@@ -204,6 +204,15 @@ def test_recovery_fixes_a_placement_that_contradicts_the_goal():
     assert second.recoveries == [] and second.replan is None
     loop.run(["o2->p1"])  # the same position contradicts again: it is not fixed a second time
     assert fixes == [(1, "o3")] and ("o2", 1) in loop.pairs
+    # a worker's o1 recorded on p3 twice: the second is re-read as the nearest free position goal 0 wants o1 on
+    loop = SemanticPlannerLoop(TruthPlanner(spec, 0), robot, echo=None, fix=fix)
+    _, again = loop.run(["o1->p3", "o1->p3"])
+    assert loop.pairs == [("o1", 3), ("o1", 2)] and again.label == "o1->p3"
+    assert [(r.wrong, r.placed, r.reread) for r in again.recoveries] == [(("o1", 3), ("o1", 2), True)]
+    assert "the worker's o1 read as p2" in again.describe()
+    thesis = SemanticPlannerLoop(TruthPlanner(spec, 0), robot, echo=None)
+    thesis.run(["o1->p3", "o1->p3"])
+    assert thesis.pairs == [("o1", 3), ("o1", 3)]
 
 
 def test_the_loop_drives_the_robot_cell_on_a_short_session(monkeypatch):

@@ -226,7 +226,8 @@ class HRCSessionProtocol(Table52Protocol):
     ``recovery`` (hrc_lab's, beyond Algorithm 3; off for the thesis' rows): when the assembly contradicts the
     inferred goal (a part on a position the goal wants another type on, or a worker's placement
     on a position the cell holds another part on), the loop says so and the robot clears that position and
-    places the goal's part there (:class:`~hrc_lab.reasoning.hrc_loop.SemanticPlannerLoop`)."""
+    places the goal's part there; a worker's part recorded on a position that already holds that type is re-read
+    as the nearest free position the goal wants it on (:class:`~hrc_lab.reasoning.hrc_loop.SemanticPlannerLoop`)."""
 
     video: bool = True
     video_session: int | None = None

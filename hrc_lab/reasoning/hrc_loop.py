@@ -14,7 +14,9 @@ there (:meth:`hrc_lab.env.robot.assembly_cell.AssemblyCell.human_place`).
 recorded pair that contradicts the inferred goal (the goal wants another part type on that position; two parts
 recorded on one position) is dropped and ``fix(position, part)`` makes the goal's part sit there (the robot
 clears the position and places it); the loop says so and plans again (the event's ``replan``). Each position is
-fixed at most once per session, so a wrong goal guess cannot start a loop of removals.
+fixed at most once per session, so a wrong goal guess cannot start a loop of removals. A worker's placement
+recorded on a position that already holds the same part type cannot be (one of the two was read on the wrong
+position): it is re-read as the nearest free position where the inferred goal wants that part.
 """
 
 from __future__ import annotations
@@ -33,16 +35,21 @@ Fix = Callable[[int, str], tuple[str, int] | None]
 
 @dataclass
 class Recovery:
-    """One fix: the recorded pair that contradicted goal ``goal``, the part the goal wants there, and what the
-    position holds after the fix (None: the fix failed)."""
+    """One recovery: the recorded pair that contradicted goal ``goal``, the part the goal wants there, and what the
+    position holds after the fix (None: the fix failed); or, ``reread``, a worker's placement recorded on a
+    position that already held that part, re-read as ``placed``."""
 
     wrong: tuple[str, int]
     goal: int
     wanted: str
     placed: tuple[str, int] | None
+    reread: bool = False
 
     def describe(self) -> str:
         part, position = self.wrong
+        if self.reread:
+            return (f"recovery: p{position} already holds {part}; the worker's {part} read as p{self.placed[1]}, "
+                    f"where goal g{self.goal} needs one")
         outcome = f"now {self.placed[0]} on p{self.placed[1]}" if self.placed else "the robot could not fix it"
         return f"recovery: p{position} holds {part}, goal g{self.goal} needs {self.wanted} there -> {outcome}"
 
@@ -98,11 +105,16 @@ class SemanticPlannerLoop:
     def step(self, label: str) -> LoopEvent | None:
         """Consume one action label; return what the planner said, or None for fetch and transport."""
         assembly = parse_assembly(label)
+        reread = None
         if assembly is not None:
+            if self.fix is not None and assembly in self.pairs:
+                assembly, reread = self._reread(assembly)
             self.pairs.append(assembly)
             if self.human is not None:
                 self.human(*assembly)
             event = LoopEvent(label, self.planner.plan([self.pairs])[0])
+            if reread is not None:
+                event.recoveries.append(reread)
         elif label == SCREW:
             plan = self.planner.plan([self.pairs])[0]
             event = LoopEvent(label, plan)
@@ -124,6 +136,19 @@ class SemanticPlannerLoop:
         """The recorded pairs goal ``goal`` does not have: another part type on their position."""
         wanted = self.spec.goal(goal)
         return [(part, position) for part, position in self.pairs if wanted[position - 1] != part]
+
+    def _reread(self, assembly: tuple[str, int]) -> tuple[tuple[str, int], Recovery | None]:
+        """A worker's placement of ``part`` on a position the record already gives that part: one of the two was
+        read on the wrong position (adjacent positions are the detector's usual confusion), so the new one is read
+        as the free position nearest to it where the inferred goal wants ``part``; unchanged if there is none."""
+        part, position = assembly
+        goal = self.planner.plan([self.pairs])[0].goal
+        wanted = self.spec.goal(goal)
+        free = [q for q in range(1, self.spec.n_positions + 1) if q not in self.assembled and wanted[q - 1] == part]
+        if not free:
+            return assembly, None
+        nearest = min(free, key=lambda q: (abs(q - position), q))
+        return (part, nearest), Recovery(assembly, goal, part, (part, nearest), reread=True)
 
     def _recover(self, event: LoopEvent) -> None:
         """Fix every contradiction of the event's inferred goal once per position, then plan again."""

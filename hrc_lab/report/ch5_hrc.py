@@ -57,8 +57,10 @@ def recovery_text(sessions: pd.DataFrame) -> str:
     return (f"**Recovery** (`protocol.recovery=true`, hrc_lab's, beyond Algorithm 3): after every plan, a recorded "
             "part the inferred goal does not want on its position (or a second part recorded on a position) is "
             "named, the robot takes the part there back to its bin and places the goal's part, and the loop plans "
-            "again; each position at most once per session. Here "
-            f"{int(sessions.recoveries.sum())} fixes in {len(fixed)} of {len(sessions)} sessions "
+            "again; each position at most once per session. A worker's placement recorded on a position that "
+            "already holds that part type (one of the two was read on the wrong position) is re-read as the nearest "
+            "free position where the inferred goal wants it. Here "
+            f"{int(sessions.recoveries.sum())} recoveries in {len(fixed)} of {len(sessions)} sessions "
             f"({int(fixed.recovered.sum())} carried out); {int(fixed.complete.sum())} of those {len(fixed)} sessions "
             "ended assembled.")
 
