@@ -108,7 +108,8 @@ def table_5_2(runs: pd.DataFrame) -> Section:
         rows.append(row)
     text = [
         "Generated assembly sessions streamed frame by frame through MediaPipe tracking, the action detector "
-        "(`hand_lstm_fcn`, trained once on all generated clips) and the semantic planner's Algorithm 3 loop. AD: "
+        "(`hand_lstm_fcn`, trained once on all generated clips, "
+        f"{amount(runs, 'protocol.clips_per_class', 'per action')}) and the semantic planner's Algorithm 3 loop. AD: "
         f"share of windows ({amount(runs, 'env.video.window', 'frames')}) whose action is the majority true label "
         "of their frames; SG: the Semantic Guidance "
         "on screen after each human placement (hand out of view) is right for every part type; SC: the first robot "
