@@ -194,16 +194,19 @@ def test_recovery_fixes_a_placement_that_contradicts_the_goal():
 
     robot = lambda part, p: (part, p)  # noqa: E731 (a stand-in that places what it is told)
     thesis = SemanticPlannerLoop(TruthPlanner(spec, 0), robot, echo=None)
-    thesis.run(["o1->p1", "o1->p2"])
-    assert thesis.pairs == [("o1", 1), ("o1", 2)]
+    thesis.run(["o1->p2", "o1->p3", "o2->p4"])
+    assert thesis.pairs == [("o1", 2), ("o1", 3), ("o2", 4)]
     loop = SemanticPlannerLoop(TruthPlanner(spec, 0), robot, echo=None, fix=fix)
-    first, second = loop.run(["o1->p1", "o1->p2"])
-    assert fixes == [(1, "o3")] and loop.pairs == [("o3", 1), ("o1", 2)] and loop.contradictions(0) == []
-    assert [(r.wrong, r.goal, r.wanted, r.placed) for r in first.recoveries] == [(("o1", 1), 0, "o3", ("o3", 1))]
-    assert first.replan is not None and "recovery: p1 holds o1, goal g0 needs o3" in first.describe()
-    assert second.recoveries == [] and second.replan is None
-    loop.run(["o2->p1"])  # the same position contradicts again: it is not fixed a second time
-    assert fixes == [(1, "o3")] and ("o2", 1) in loop.pairs
+    *_, third = loop.run(["o1->p2", "o1->p3", "o2->p4"])
+    assert fixes == [(4, "o1")] and loop.pairs == [("o1", 2), ("o1", 3), ("o1", 4)] and loop.contradictions(0) == []
+    assert [(r.wrong, r.goal, r.wanted, r.placed) for r in third.recoveries] == [(("o2", 4), 0, "o1", ("o1", 4))]
+    assert third.replan is not None and "recovery: p4 holds o2, goal g0 needs o1" in third.describe()
+    loop.run(["o3->p4"])  # the same position contradicts again: it is not fixed a second time
+    assert fixes == [(4, "o1")] and ("o3", 4) in loop.pairs
+    # a goal that contradicts as many recorded pairs as it agrees with is not trusted to fix them
+    lone = SemanticPlannerLoop(TruthPlanner(spec, 0), robot, echo=None, fix=fix)
+    first, second = lone.run(["o2->p1", "o1->p2"])
+    assert fixes == [(4, "o1")] and first.recoveries == [] == second.recoveries and lone.pairs[0] == ("o2", 1)
     # a worker's o1 recorded on p3 twice: the second is re-read as the nearest free position goal 0 wants o1 on
     loop = SemanticPlannerLoop(TruthPlanner(spec, 0), robot, echo=None, fix=fix)
     _, again = loop.run(["o1->p3", "o1->p3"])

@@ -13,8 +13,9 @@ there (:meth:`hrc_lab.env.robot.assembly_cell.AssemblyCell.human_place`).
 ``fix`` (optional; hrc_lab's recovery, beyond Algorithm 3, which never corrects a placement): after every plan, a
 recorded pair that contradicts the inferred goal (the goal wants another part type on that position; two parts
 recorded on one position) is dropped and ``fix(position, part)`` makes the goal's part sit there (the robot
-clears the position and places it); the loop says so and plans again (the event's ``replan``). Each position is
-fixed at most once per session, so a wrong goal guess cannot start a loop of removals. A worker's placement
+clears the position and places it); the loop says so and plans again (the event's ``replan``). Only a goal that
+agrees with most recorded pairs is trusted to fix the others, and each position is fixed at most once per session,
+so a wrong goal guess cannot take down a right assembly or start a loop of removals. A worker's placement
 recorded on a position that already holds the same part type cannot be (one of the two was read on the wrong
 position): it is re-read as the nearest free position where the inferred goal wants that part.
 """
@@ -151,9 +152,14 @@ class SemanticPlannerLoop:
         return (part, nearest), Recovery(assembly, goal, part, (part, nearest), reread=True)
 
     def _recover(self, event: LoopEvent) -> None:
-        """Fix every contradiction of the event's inferred goal once per position, then plan again."""
+        """Fix every contradiction of the event's inferred goal once per position, then plan again; nothing when the
+        goal contradicts as many recorded pairs as it agrees with (then the guess, not the assembly, is wrong: a
+        transient wrong goal had the robot take down four right parts in the first measured run)."""
         goal = event.plan.goal
-        for part, position in self.contradictions(goal):
+        wrong = self.contradictions(goal)
+        if 2 * len(wrong) >= len(self.pairs):
+            return
+        for part, position in wrong:
             if position in self.fixed:
                 continue
             self.fixed.add(position)
