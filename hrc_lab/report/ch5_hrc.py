@@ -57,7 +57,8 @@ def recovery_text(sessions: pd.DataFrame) -> str:
     return (f"**Recovery** (`protocol.recovery=true`, hrc_lab's, beyond Algorithm 3): after every plan, a recorded "
             "part the inferred goal does not want on its position (or a second part recorded on a position) is "
             "named, the robot takes the part there back to its bin and places the goal's part, and the loop plans "
-            "again; each position at most once per session. A worker's placement recorded on a position that "
+            "again; only a goal that agrees with most recorded pairs is trusted to fix the others, and each position "
+            "is fixed at most once per session. A worker's placement recorded on a position that "
             "already holds that part type (one of the two was read on the wrong position) is re-read as the nearest "
             "free position where the inferred goal wants it. Here "
             f"{int(sessions.recoveries.sum())} recoveries in {len(fixed)} of {len(sessions)} sessions "
@@ -137,7 +138,7 @@ def hrc_session(runs: pd.DataFrame) -> Section:
     if recovering(runs) and len(wanted):
         lines = wanted.recovery_log[wanted.run_id == shown.run_id].fillna("")
         log = f" The loop said: \"{lines.iloc[0]}\"." if len(lines) and lines.iloc[0] else ""
-    text.append(f"The video ([hrc_session.mp4](ch5_hrc/hrc_session.mp4)): session {int(filmed[shown.run_id])} of "
+    text.append(f"The video (linked below): session {int(filmed[shown.run_id])} of "
                 f"`{shown.cell}`, seed {shown.seed} ({outcome}); the worker's view with what the system saw and said, "
                 f"beside the robot cell with its last command.{log}")
     artifacts = {"hrc_session.mp4": (shown.run_id, "videos/session_side_by_side.mp4")}
