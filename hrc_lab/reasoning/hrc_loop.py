@@ -153,12 +153,13 @@ class SemanticPlannerLoop:
 
     def _recover(self, event: LoopEvent) -> None:
         """Fix every contradiction of the event's inferred goal once per position, then plan again; nothing when the
-        goal contradicts as many recorded pairs as it agrees with (then the guess, not the assembly, is wrong: a
-        transient wrong goal had the robot take down four right parts in the first measured run)."""
+        goal contradicts as many recorded pairs as it agrees with (then the guess, not the assembly, is wrong: in a
+        measured run a transient wrong goal had the robot take down four right parts)."""
         goal = event.plan.goal
         wrong = self.contradictions(goal)
         if 2 * len(wrong) >= len(self.pairs):
             return
+        fixes = []
         for part, position in wrong:
             if position in self.fixed:
                 continue
@@ -168,8 +169,9 @@ class SemanticPlannerLoop:
             placed = self.fix(position, wanted)
             if placed is not None:
                 self.pairs.append(placed)
-            event.recoveries.append(Recovery((part, position), goal, wanted, placed))
-        if event.recoveries:
+            fixes.append(Recovery((part, position), goal, wanted, placed))
+        if fixes:
+            event.recoveries.extend(fixes)
             event.replan = self.planner.plan([self.pairs])[0]
 
     def run(self, labels: Iterable[str]) -> list[LoopEvent]:
