@@ -99,8 +99,8 @@ def maximizes_by_default(config: DictConfig) -> bool:
     """Whether a study optimises the default objective (no search file, ``sr``: a success rate) with no direction
     given on the command line: Optuna's default direction, minimize, would look for the worst settings."""
     given = any(str(item).startswith("hydra.sweeper.direction=") for item in config.hydra.overrides.hydra)
-    return not given and (config.get("search") or {}).get("name", "none") == "none" and objective_of(config) == \
-        DEFAULT_OBJECTIVE
+    search_file = (config.get("search") or {}).get("name", "none") != "none"
+    return not given and not search_file and objective_of(config) == DEFAULT_OBJECTIVE
 
 
 class StudyCallback(Callback):

@@ -10,7 +10,7 @@ import os
 from dataclasses import dataclass, field
 
 from hrc_lab.env.fetch import FETCH_ENV_IDS
-from hrc_lab.env.robot.settings import CELL_CAMERA
+from hrc_lab.env.robot.settings import CELL_CAMERA, YAW_ORDERS
 from hrc_lab.grasp.configs import GRASPS
 from hrc_lab.motion.configs import PLANNER_INPUTS, STAGE_LABELS, STAGE_STARTS
 from hrc_lab.reasoning.configs import CH4 as REASONING_CH4
@@ -690,8 +690,8 @@ class Table62RobotProtocol(Table62SingleProtocol):
             raise ValueError(f"protocol.max_grasps must be >= 1, got {self.max_grasps}")
         if self.video_objects < 0:
             raise ValueError(f"protocol.video_objects must be >= 0, got {self.video_objects}")
-        if self.yaw_order not in ("narrowest", "smallest_turn"):
-            raise ValueError(f"protocol.yaw_order must be 'narrowest' or 'smallest_turn', got '{self.yaw_order}'")
+        if self.yaw_order not in YAW_ORDERS:
+            raise ValueError(f"protocol.yaw_order must be one of {list(YAW_ORDERS)}, got '{self.yaw_order}'")
 
 
 @dataclass

@@ -41,7 +41,7 @@ import numpy as np
 
 from hrc_lab.env.clutter.scenes import BASE_COLOURS, SceneCamera, import_mujoco
 from hrc_lab.env.clutter.spec import PART_TYPES, ClutterScene, ClutterSpec, box_centre_median
-from hrc_lab.env.robot.settings import CELL_CAMERA
+from hrc_lab.env.robot.settings import CELL_CAMERA, YAW_ORDERS
 
 import_mujoco()  # before robosuite does: MuJoCo with an off-screen GL (EGL, else OSMesa) for the scene camera
 # isort: off
@@ -80,7 +80,6 @@ ORIENTATION_TOLERANCE = 0.03  # rad: a waypoint is reached when the gripper is a
 FINGER_ZONES = ((0.012, 0.0), (0.045, 0.022))
 FINGER_HALF_WIDTH = 0.016  # m across the closing axis
 YAW_CANDIDATES = 12  # approach yaws tried, every 15 degrees over the gripper's half turn of symmetry
-YAW_ORDERS = ("narrowest", "smallest_turn")  # how grasp_yaw ranks the clear yaws
 NARROWEST_BIN = 0.004  # m: of the clear yaws, the narrowest opening (in bins of this) wins, then the smallest turn
 TOP_FACE_BAND = 0.005  # m: pixels of the box this close below the grasp point's height are the part's top face
 

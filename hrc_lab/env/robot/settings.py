@@ -15,6 +15,7 @@ from hrc_lab.env.robot.spec import PackageToOrderSpec
 
 EC_TASKS = ("one_object", "two_object", "place", "stack")
 CELL_CAMERA = "cellview"  # every robot cell's camera facing the robot over the table (the worker's side)
+YAW_ORDERS = ("narrowest", "smallest_turn")  # how ClutterCell.grasp_yaw ranks the clear approach yaws
 
 
 @dataclass(frozen=True)
