@@ -134,8 +134,8 @@ def test_report_marks_metrics_that_older_runs_did_not_log(monkeypatch):
 
 
 def test_report_gives_each_budget_its_own_row(monkeypatch):
-    """Runs of one (experiment, lambda) trained for other epochs or Adam step sizes are never averaged together:
-    each budget gets its own row (and curve), named by its epochs and step size."""
+    """Runs of one (experiment, lambda) trained for other epochs, Adam step sizes or demonstrations are never
+    averaged together: each budget gets its own row (and curve), named by its epochs, step size and demonstrations."""
     import pandas as pd
 
     from hrc_lab.report import ch3_rl
@@ -143,14 +143,17 @@ def test_report_gives_each_budget_its_own_row(monkeypatch):
 
     curve = pd.DataFrame({"run_id": ["a", "b", "c"], "step": [1, 1, 1], "value": [0.2, 0.4, 0.9]})
     monkeypatch.setattr(ch3_rl, "histories", lambda runs, metric: curve)
-    runs = pd.DataFrame({"run_id": ["a", "b", "c"], "scenario": ["two_object_case1"] * 3, "seed": [0, 1, 0],
-                         "param.rl.lam": ["0.7"] * 3, "param.protocol.epochs": ["4", "4", "10"],
-                         "param.rl.learning_rate": ["0.001"] * 3,
-                         "param.rl.final_learning_rate": ["None", "None", "0.0001"],
-                         **{c: [0.2, 0.4, 0.9] for c in ALL_FINAL}})
+    curve = pd.concat([curve, pd.DataFrame({"run_id": ["d"], "step": [1], "value": [0.5]})])
+    runs = pd.DataFrame({"run_id": ["a", "b", "c", "d"], "scenario": ["two_object_case1"] * 4, "seed": [0, 1, 0, 0],
+                         "param.rl.lam": ["0.7"] * 4, "param.protocol.epochs": ["4", "4", "10", "10"],
+                         "param.protocol.expert_demos": ["50", "50", "50", "300"],
+                         "param.rl.learning_rate": ["0.001"] * 4,
+                         "param.rl.final_learning_rate": ["None", "None", "0.0001", "0.0001"],
+                         **{c: [0.2, 0.4, 0.9, 0.5] for c in ALL_FINAL}})
     section = curves_section(runs, "t", "intro", "thesis", "x.png")
     rows = [line for line in section.markdown.splitlines() if line.startswith("| two object")]
-    assert len(rows) == 2
-    assert any("| 4 (0.001) " in r and "| 0.30 ± 0.10 " in r and "|       2 |" in r for r in rows)
-    assert any("| 10 (0.001 → 0.0001) " in r and "| 0.90 " in r for r in rows)
-    assert set(section.table.budget) == {"4 (0.001)", "10 (0.001 → 0.0001)"}
+    assert len(rows) == 3
+    assert any("| 4 (0.001), 50 " in r and "| 0.30 ± 0.10 " in r and "|       2 |" in r for r in rows)
+    assert any("| 10 (0.001 → 0.0001), 50 " in r and "| 0.90 " in r for r in rows)
+    assert any("| 10 (0.001 → 0.0001), 300 " in r and "| 0.50 " in r for r in rows)
+    assert set(section.table.budget) == {"4 (0.001), 50", "10 (0.001 → 0.0001), 50", "10 (0.001 → 0.0001), 300"}

@@ -26,6 +26,8 @@ def lam_of(runs: pd.DataFrame) -> pd.Series:
 
 
 LAST_EPOCHS = 3  # "SR, last epochs": the evaluations of a subtask's last 3 epochs pooled (60 episodes at 20 each)
+# a row's budget: protocol.epochs, rl.learning_rate -> rl.final_learning_rate, protocol.expert_demos
+BUDGET = "epochs (Adam step size), demonstrations"
 
 
 def last_epochs_sr(runs: pd.DataFrame, history: pd.DataFrame) -> pd.Series:
@@ -44,7 +46,8 @@ def last_epochs_sr(runs: pd.DataFrame, history: pd.DataFrame) -> pd.Series:
 
 def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str, png: str) -> Section:
     """SR per epoch for every (scenario, lambda, budget): each run light, the mean over seeds bold; the final-epoch
-    table. Runs of another budget (epochs, Adam step size) get their own row and curve, never a shared mean."""
+    table. Runs of another budget (epochs, Adam step size, demonstrations) get their own row and curve, never a
+    shared mean."""
     runs = runs.assign(lam=lam_of(runs), budget=runs.apply(run_budget, axis=1))
     history = histories(runs, "success_rate").merge(runs[["run_id", "scenario", "lam", "budget", "seed"]],
                                                     on="run_id")
@@ -67,7 +70,7 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
                     for s, v in mean.items()]
             done = runs[(runs.scenario == scenario) & (runs.lam == lam) & (runs.budget == budget)]
             row = {"experiment": scenario.replace("_", " "), "λ": lam, "seeds": len(done),
-                   "epochs (Adam step size)": budget}
+                   BUDGET: budget}
             for metric, label in (("final_success_rate", "final SR"),
                                   ("last_epochs_success_rate", f"SR, last {LAST_EPOCHS} epochs"),
                                   ("best_success_rate", "best SR"),
@@ -97,13 +100,15 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
 
 
 def run_budget(run: pd.Series) -> str:
-    """A run's epochs per subtask and Adam step size, e.g. "10 (0.001 → 0.0001)" for ``rl.final_learning_rate``'s
-    linear fall, "4 (0.001)" when constant (runs from before the key logged none)."""
+    """A run's epochs per subtask, Adam step size and scripted-expert demonstrations per subtask, e.g.
+    "10 (0.001 → 0.0001), 300" for ``rl.final_learning_rate``'s linear fall, "4 (0.001), 50" when constant (runs
+    from before the key logged none); "?" for a key the run did not log."""
     start, final = run.get(f"{PARAM_PREFIX}rl.learning_rate"), run.get(f"{PARAM_PREFIX}rl.final_learning_rate")
     rate = f"{float(start):g}" if pd.notna(start) else "?"
     if pd.notna(final) and str(final) != "None":  # MLflow logs a null as the text "None"
         rate += f" → {float(final):g}"
-    return f"{run.get(f'{PARAM_PREFIX}protocol.epochs', '?')} ({rate})"
+    demos = run.get(f"{PARAM_PREFIX}protocol.expert_demos")
+    return f"{run.get(f'{PARAM_PREFIX}protocol.epochs', '?')} ({rate}), {demos if pd.notna(demos) else '?'}"
 
 
 def net_arch(runs: pd.DataFrame) -> str:
@@ -147,9 +152,10 @@ def epoch_text(runs: pd.DataFrame) -> str:
             f"{amount(runs, 'rl.steps_per_subtask', 'control steps')} and "
             f"{amount(runs, 'rl.gradient_steps', 'gradient steps')}, then "
             f"{amount(runs, 'protocol.eval_episodes', 'evaluation episodes')} of the deterministic policy on held-out "
-            f"scenes; {amount(runs, 'protocol.epochs', 'epochs')} per subtask (each row's, and its Adam step size, in "
-            "its own column), subtasks in sequence (thesis: within "
-            "550 epochs, read as the reference implementation's). Agent: DDPG + HER, hidden layers "
+            f"scenes; {amount(runs, 'protocol.epochs', 'epochs')} per subtask (each row's, with its Adam step size and "
+            "the scripted-expert demonstrations per subtask in the agent's demonstration buffer, in its own "
+            "column), subtasks in sequence (thesis: within 550 epochs, read as the reference implementation's). "
+            "Agent: DDPG + HER, hidden layers "
             f"{net_arch(runs)}, {inputs_text(runs)}, {ddpg_text(runs)}; planner trained on "
             f"{amount(runs, 'protocol.demos', 'expert demonstrations')}. Final SR: the last epoch's evaluation, "
             f"mean over the plan's subtasks; SR, last {LAST_EPOCHS} epochs: the evaluations of each subtask's last "
