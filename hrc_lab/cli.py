@@ -26,7 +26,7 @@ from hydra.errors import ConfigCompositionException, MissingConfigException, Ove
 from omegaconf import DictConfig
 
 from hrc_lab.config import LOGGERS, ConfigError, ValidatedConfig, validate_config
-from hrc_lab.interrupts import RunInterrupted, signals_raise
+from hrc_lab.interrupts import RunInterrupted, exit_interrupted, signals_raise
 from hrc_lab.run_naming import CONF_DIR, is_optuna, job_tags, method_of, run_name
 
 log = logging.getLogger("hrc_lab")
@@ -122,7 +122,7 @@ def _hydra_main(cfg: DictConfig) -> float | None:
         sys.exit(2)
     except RunInterrupted as err:
         print(f"hrc-lab: {err}; the MLflow run is marked KILLED (resume with resume_from=<run id>)", file=sys.stderr)
-        sys.exit(err.exit_code)
+        exit_interrupted(err)
     except Exception as err:
         from hrc_lab.tracking import TrackingUnavailable  # imported by run() already (kept off the config path)
 

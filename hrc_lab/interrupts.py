@@ -4,8 +4,12 @@ with the shell's code for the signal (143, 130) instead of looking successful.""
 from __future__ import annotations
 
 import contextlib
+import multiprocessing
+import os
 import signal
+import sys
 from collections.abc import Iterator
+from typing import NoReturn
 
 SIGNALS = (signal.SIGTERM, signal.SIGINT)
 
@@ -18,6 +22,9 @@ class RunInterrupted(BaseException):
         self.signum = signum
         self.signal_name = signal.Signals(signum).name
         super().__init__(f"interrupted by {self.signal_name}")
+
+    def __reduce__(self):  # pickled by its signal number, e.g. when a launcher's worker sends it to its parent
+        return type(self), (self.signum,)
 
     @property
     def exit_code(self) -> int:
@@ -43,3 +50,16 @@ def signals_raise() -> Iterator[None]:
     finally:
         for signum, old in previous.items():
             signal.signal(signum, old)
+
+
+def exit_interrupted(err: RunInterrupted) -> NoReturn:
+    """End the process with the signal's exit code once the interrupted job has unwound. In a launcher's worker
+    process (joblib's loky workers under ``hydra/launcher=joblib``) the worker loop catches ``SystemExit`` like any
+    task error and waits for the next task from a parent the same signal has ended, so the worker would outlive the
+    sweep: there the process ends at once (``os._exit``, streams flushed first), and a launcher whose parent is
+    alive sees a terminated worker, never a finished job."""
+    if multiprocessing.parent_process() is None:
+        sys.exit(err.exit_code)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(err.exit_code)

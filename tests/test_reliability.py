@@ -78,6 +78,26 @@ def test_a_signal_marks_the_run_killed(tmp_path, signum, code):
     assert {s: signal.getsignal(s) for s in before} == before  # handlers restored
 
 
+def test_an_interrupted_job_ends_its_launcher_worker():
+    """A joblib (loky) worker whose job was interrupted ends with the signal's code instead of waiting for tasks from
+    a parent the same signal ended (hydra/launcher=joblib's workers outlived a SIGTERM'd sweep); in the main process
+    (one job, or a sequential launcher) the job exits with the code as before."""
+    import pickle
+
+    from joblib import Parallel, delayed
+    from joblib.externals.loky.process_executor import TerminatedWorkerError
+
+    from hrc_lab.interrupts import exit_interrupted
+
+    interrupted = RunInterrupted(signal.SIGTERM)
+    assert pickle.loads(pickle.dumps(interrupted)).exit_code == 143
+    with pytest.raises(TerminatedWorkerError, match=r"EXIT\(143\)"):
+        Parallel(n_jobs=2, backend="loky")(delayed(exit_interrupted)(interrupted) for _ in range(2))
+    with pytest.raises(SystemExit) as caught:
+        exit_interrupted(RunInterrupted(signal.SIGINT))
+    assert caught.value.code == 130
+
+
 def test_an_exception_marks_the_run_failed(tmp_path):
     logger = LoggerConfig(tracking_uri=f"sqlite:///{tmp_path}/mlflow.db", artifact_root=str(tmp_path / "art"))
     with pytest.raises(RuntimeError), RunTracker(logger, "exp", "job", {}) as tracker:
