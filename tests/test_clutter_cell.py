@@ -114,14 +114,14 @@ def test_the_approach_yaw_turns_the_fingers_away_from_a_tall_neighbour(cell):
     corners = SPEC.project(np.array([[-0.015, 0.015, 0.03], [0.015, -0.015, 0.03]]))
     box = np.array([*corners[0], *corners[1]], dtype=np.float32)
     alone = _depth_of_blocks([part])
-    yaw, half = cell.grasp_yaw(box, alone)
+    yaw, half = cell.grasp_yaw(box, alone, True, "smallest_turn")
     assert yaw == 0.0 and half == pytest.approx(cell.grasp_opening(box, alone), abs=0.004)
     crowded = _depth_of_blocks([part, (0.03, 0.06, -0.06, 0.06, 0.07)])
-    yaw, half = cell.grasp_yaw(box, crowded)
+    yaw, half = cell.grasp_yaw(box, crowded, True, "smallest_turn")
     assert abs(np.degrees(yaw)) >= 75 and half < 0.03
-    assert cell.grasp_yaw(box, crowded, order="narrowest")[0] == yaw  # only about a quarter turn is clear
+    assert cell.grasp_yaw(box, crowded, True, order="narrowest")[0] == yaw  # only about a quarter turn is clear
     with pytest.raises(ValueError, match="yaw order"):
-        cell.grasp_yaw(box, crowded, order="widest")
+        cell.grasp_yaw(box, crowded, True, order="widest")
 
 
 def oracle_nodes(now):
@@ -141,7 +141,8 @@ def oracle_episode(cell, max_grasps):
 
     scene = generate_scene(THREE, A_UNDER_B)
     return run_episode(cell, scene, THREE, "a", oracle_nodes, oracle_read, max_requests=6, max_grasps=max_grasps,
-                       answer_right=lambda nodes, goal, answer: iterative_correct(THREE, nodes, goal, answer))
+                       answer_right=lambda nodes, goal, answer: iterative_correct(THREE, nodes, goal, answer),
+                       yaw_order="smallest_turn")
 
 
 def test_algorithm_4_with_the_robot_moves_the_blocker_then_delivers(cell):

@@ -244,8 +244,8 @@ class ClutterCell(ManipulationEnv):
             self._openings = (commands, np.asarray(halves))
         return self._openings
 
-    def grasp_yaw(self, box: np.ndarray, depth: np.ndarray, preshape: bool = True,
-                  order: str = "smallest_turn") -> tuple[float, float | None]:
+    def grasp_yaw(self, box: np.ndarray, depth: np.ndarray, preshape: bool,
+                  order: str) -> tuple[float, float | None]:
         """(yaw, half opening): the approach yaw (rad about the vertical, 0 the rule's fingers closing along x) whose
         finger volumes (:data:`FINGER_ZONES`, either side of the grasp point along the closing axis, from the pads'
         inner faces out) the depth image shows clearest of neighbours, and the pre-grasp half opening at it (the
