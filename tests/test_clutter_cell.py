@@ -142,7 +142,7 @@ def oracle_episode(cell, max_grasps):
     scene = generate_scene(THREE, A_UNDER_B)
     return run_episode(cell, scene, THREE, "a", oracle_nodes, oracle_read, max_requests=6, max_grasps=max_grasps,
                        answer_right=lambda nodes, goal, answer: iterative_correct(THREE, nodes, goal, answer),
-                       yaw_order="smallest_turn")
+                       preshape=True, choose_yaw=True, yaw_order="smallest_turn")
 
 
 def test_algorithm_4_with_the_robot_moves_the_blocker_then_delivers(cell):

@@ -61,8 +61,8 @@ class RobotEpisode:
 def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[object], SceneNodes],
                 read: Callable[[SceneNodes, np.ndarray], list[NodeReading]], max_requests: int,
                 max_grasps: int, answer_right: Callable,
-                on_decision: Callable[[RobotStep], None] | None = None, preshape: bool = True,
-                choose_yaw: bool = True, *, yaw_order: str) -> RobotEpisode:
+                on_decision: Callable[[RobotStep], None] | None = None, *, preshape: bool, choose_yaw: bool,
+                yaw_order: str) -> RobotEpisode:
     """Algorithm 4 with the robot on ``scene`` (rendered from ``spec``) for the requested type ``goal``.
     ``perceive(scene_now)`` detects and matches (the trained detector,
     :func:`~hrc_lab.grasp.observation.scene_nodes`); ``read(nodes, mask)`` is the solver's reading of every node for
