@@ -145,8 +145,9 @@ class Algorithm2System(TampSystem):
 
 
 class OursSystem(Algorithm2System):
-    """Ours (Algorithm 2): the two-level motion module trained on CASE 1 robot demonstrations (as Table 4.2, or over
-    every goal configuration with ``protocol.motion_demos=all``)."""
+    """Ours (Algorithm 2): the two-level motion module trained on CASE 1 robot demonstrations, drawn from every goal
+    configuration (``protocol.motion_demos=all``, Table 4.3's) or one packing arrangement per selection (``fixed``,
+    as Table 4.2)."""
 
     def build_motion(self, ctx: RunContext):
         from hrc_lab.motion.demonstrations import collect_demos, fixed_goal_configurations
