@@ -172,3 +172,20 @@ def test_table_4_3_config_errors_name_the_key(compose_config, overrides, key):
 
     with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
         validate_config(compose_config("experiment=ch4/table_4_3", *overrides))
+
+
+def test_table_4_3_report_names_the_motion_demonstrations_goal_configurations():
+    """The report says how the motion module's demonstrations chose their goal configurations, from the runs of the
+    systems that train one (DRL and RM+RRT-Connect runs log the key but do not use it)."""
+    import pandas as pd
+
+    from hrc_lab.report.ch4_tamp import demonstrated_goals
+
+    runs = pd.DataFrame({"method": ["ours", "ours_hrc", "drl"],
+                         "param.protocol.motion_demos": ["all", "all", "fixed"]})
+    assert demonstrated_goals(runs) == "their goal configurations drawn from every slot assignment"
+    older = runs.assign(**{"param.protocol.motion_demos": ["fixed", None, None]})
+    assert demonstrated_goals(older) == "one packing arrangement per selection as Table 4.2"
+    assert demonstrated_goals(runs.drop(columns="param.protocol.motion_demos")) == (
+        "one packing arrangement per selection as Table 4.2")  # runs before the key
+    assert demonstrated_goals(runs[runs.method == "drl"]) == "no system of these runs trains one"

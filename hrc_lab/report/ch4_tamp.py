@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 
 from hrc_lab.report.plots import success_bars
-from hrc_lab.report.runs import amount, keyed, mean_std, over_seeds
+from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, over_seeds, setting
 from hrc_lab.report.sections import Section, register_section
 from hrc_lab.report.thesis import fmt, thesis_cells, thesis_fmt, thesis_results, thesis_value
 from hrc_lab.tamp.configs import LABELS, SYSTEMS
@@ -105,7 +105,7 @@ def table_4_3(runs: pd.DataFrame) -> Section:
         f"the same scenes for every system), δr = {keyed(runs, 'env.sim.success_threshold', 'm')}; "
         f"{over_seeds(runs)}, thesis values in brackets. Ours and RM+RRT-Connect learn from CASE 1 "
         f"only (reasoning module: {amount(runs, 'protocol.min_demos', 'task episodes')} as Table 4.1; motion module: "
-        f"{amount(runs, 'protocol.demos', 'robot demonstrations')} as Table 4.2); DRL trains "
+        f"{amount(runs, 'protocol.demos', 'robot demonstrations')}, {demonstrated_goals(runs)}); DRL trains "
         f"{amount(runs, 'protocol.drl_iterations', 'cycles')} of the HER reference implementation (thesis: 5000 "
         f"iterations) on both cases, {amount(runs, 'rl.episodes_per_cycle', 'episodes')} and "
         f"{amount(runs, 'rl.gradient_steps', 'gradient steps')} per cycle, with "
@@ -138,3 +138,20 @@ def table_4_3(runs: pd.DataFrame) -> Section:
     return Section("Table 4.3: the TAMP system vs DRL vs RM+RRT-Connect", "\n".join(text), frame,
                    {"table_4_3.png": success_bars(frame, cells, systems, LABELS, "Table 4.3", group_col="system")},
                    artifacts)
+
+
+# how the motion module's robot demonstrations chose their goal configurations (``protocol.motion_demos``)
+MOTION_DEMOS = {"fixed": "one packing arrangement per selection as Table 4.2", "all": "their goal configurations "
+                "drawn from every slot assignment"}
+
+
+def demonstrated_goals(runs: pd.DataFrame) -> str:
+    """The goal configurations of the motion module's demonstrations in the runs of the systems that train one
+    (``protocol.motion_demos``; runs before the key: Table 4.2's arrangement)."""
+    trained = runs[runs["method"].isin(["ours", "ours_hrc"])] if "method" in runs else runs
+    if trained.empty:
+        return "no system of these runs trains one"
+    value = setting(trained, "protocol.motion_demos")
+    if value == NOT_LOGGED:
+        value = "fixed"
+    return " or ".join(MOTION_DEMOS.get(v, f"`protocol.motion_demos` {v}") for v in value.split(" or "))
