@@ -147,8 +147,10 @@ MOTION_DEMOS = {"fixed": "one packing arrangement per selection as Table 4.2", "
 
 def demonstrated_goals(runs: pd.DataFrame) -> str:
     """The goal configurations of the motion module's demonstrations in the runs of the systems that train one
-    (``protocol.motion_demos``; runs before the key: Table 4.2's arrangement)."""
-    trained = runs[runs["method"].isin(["ours", "ours_hrc"])] if "method" in runs else runs
+    (those built as :class:`hrc_lab.tamp.systems.OursSystem`; ``protocol.motion_demos``; runs from before the key
+    had Table 4.2's arrangement, "fixed")."""
+    motion_trained = [name for name, (system, _) in SYSTEMS.items() if system == "OursSystem"]
+    trained = runs[runs["method"].isin(motion_trained)] if "method" in runs else runs
     if trained.empty:
         return "no system of these runs trains one"
     value = setting(trained, "protocol.motion_demos")
