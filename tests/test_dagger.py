@@ -38,7 +38,7 @@ class _ExpertSubgoals:
     def __init__(self, env, offset: float) -> None:
         self.expert, self.offset = ScriptedExpert(env), np.array([offset, 0.0, 0.0])
 
-    def predict(self, x, labels, indices):
+    def predict(self, x, labels, indices, references):
         obj, stage = divmod(int(labels[0]), 2)
         subgoal = self.expert.designed_subgoals(obj + 1, stage)[int(indices[0])]
         return (subgoal + self.offset * (stage == PLACE))[None], np.zeros((1, 3))
@@ -51,7 +51,7 @@ def test_a_round_demonstrates_the_second_object_from_where_the_loop_left_the_fir
     env = make_env(ErrorCorrectionConfig(task="two_object"), seed=0)  # case 1: blue first, then red
     imprecise = _ExpertSubgoals(env, offset=0.03)
     loop = partial(run_correction, planner=imprecise, ndp=imprecise, classifier=None, n_subgoals=3,
-                   ground_truth_stages=True)
+                   stage_labels="ground_truth")
     (demo,) = takeover_demos(env, loop, 1, subgoals_per_stage=5, segmentation_penalty=1e-3, desc="test")
     first, second = env.expert_plan()
     blue_error = np.linalg.norm(demo.obs["object_pos"][:, 3 * first:3 * first + 3] - env.goals[first], axis=1)

@@ -27,8 +27,10 @@ from hrc_lab.motion.two_level import (
     classifier_pairs,
     correction_input,
     correction_pairs,
+    correction_reference,
     dynamics_pairs,
     package_pairs,
+    picking_label,
     reach,
     run_correction,
     run_package,
@@ -187,8 +189,25 @@ def test_ground_truth_stage_labels_go_for_the_experts_objects_in_order():
     ndp.fit(*dynamics_pairs(demos, config), tiny_trainer)
     always_red = lambda x: np.full(len(x), 2)  # noqa: E731
     wrong, _ = run_correction(env, planner, ndp, always_red, n_subgoals=2, max_steps=2)
-    right, _ = run_correction(env, planner, ndp, always_red, n_subgoals=2, max_steps=2, ground_truth_stages=True)
+    right, _ = run_correction(env, planner, ndp, always_red, n_subgoals=2, max_steps=2, stage_labels="ground_truth")
     assert wrong.picks[0] == 2 and right.picks[0] == env.expert_plan()[0] == 1
+
+
+def test_a_stage_start_that_looks_like_placing_blue_picks_by_the_rule():
+    """c(x) says "placing blue" (label 1) where blue has just been placed; of the picking labels it ranks red's
+    above blue's. The object of c(x)'s label sends the arm back to blue, its most likely picking label to red."""
+    class JustPlacedBlue:
+        def scores(self, x):
+            return np.array([[0.5, 3.0, 1.0, 0.0]])
+
+        def __call__(self, x):
+            return self.scores(x).argmax(-1)
+
+    x = np.zeros(12)
+    assert picking_label(JustPlacedBlue(), x, "classifier") == 0
+    assert picking_label(JustPlacedBlue(), x, "picking_classifier") == 2
+    with pytest.raises(ValueError, match="picking label rule"):
+        picking_label(JustPlacedBlue(), x, "ground_truth")
 
 
 def test_the_selected_planner_input_keeps_the_labelled_object_green_and_r():
@@ -272,6 +291,32 @@ def test_relative_to_r_feeds_every_position_minus_r(compose_config):
     assert validate_config(cfg).motion.relative_to_r
 
 
+def test_relative_targets_make_a_pick_point_fixed_on_its_part_wherever_the_part_lies():
+    """Sub-goals 2 cm above a part that lies anywhere; r far from every training r at test. In the world frame the
+    regression must learn to copy the part's position from few examples; relative to the stage's reference the
+    target is one point, and predictions come back in the world frame."""
+    rng = np.random.default_rng(0)
+    parts = rng.uniform(-0.3, 0.3, (12, 3))
+    x = np.hstack([parts, rng.uniform(0.4, 0.6, (12, 3))])
+    subgoals = parts + [0.0, 0.0, 0.02]
+    test_parts = rng.uniform(-0.3, 0.3, (20, 3))
+    test_x = np.hstack([test_parts, np.full((20, 3), 0.7)])
+    errors = {}
+    for relative in (False, True):
+        config = SubgoalConfig(kind="mlp", steps=300, r_jitter_m=0.0, relative_targets=relative)
+        planner = build_subgoal_planner(config, 1).fit(x, np.zeros(12, dtype=int), subgoals, tiny_trainer,
+                                                       references=parts)
+        mean, _ = planner.predict(test_x, np.zeros(20, dtype=int), references=test_parts)
+        errors[relative] = np.linalg.norm(mean - test_parts - [0.0, 0.0, 0.02], axis=1).max()
+    assert errors[True] < 0.005 < 0.02 < errors[False]
+    with pytest.raises(ValueError, match="relative_targets needs"):
+        planner.predict(test_x, np.zeros(20, dtype=int))
+    with pytest.raises(ValueError, match=r"shape \(20, 3\)"):
+        planner.predict(test_x, np.zeros(20, dtype=int), references=test_parts[:3])
+    assert correction_reference(np.arange(9.0), 2).tolist() == [6.0, 7.0, 8.0]  # picking red: red
+    assert correction_reference(np.arange(9.0), 3).tolist() == [0.0, 1.0, 2.0]  # placing red: green
+
+
 def test_correction_pairs_start_each_stage_as_demonstrated_and_as_executed():
     """A picking stage (steps 0-3) then a placing stage (steps 4-8) of object 1 (blue), two sub-goals each."""
     from types import SimpleNamespace
@@ -296,6 +341,8 @@ def test_correction_pairs_start_each_stage_as_demonstrated_and_as_executed():
     for pairs in (executed, demonstrated):  # within a stage, r is the previous sub-goal
         np.testing.assert_allclose(pairs.x[3, 9:], points[1, 0])
         np.testing.assert_allclose(pairs.subgoals, points.reshape(-1, 3))
+    # the stage's reference: blue (object 1) where its picking stage began, then green (object 0) for placing
+    np.testing.assert_allclose(executed.references, [objects[0, 3:6]] * 2 + [objects[0, :3]] * 2)
     with pytest.raises(ValueError, match="stage starts"):
         correction_pairs([demo], ("planned",))
 

@@ -40,12 +40,14 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
     rows, stage_rows = [], []
     for trial in tqdm(range(protocol.trials), desc=f"table 3.1 {config.cell}", unit="trial"):
         out, final = loop(test)
-        offsets = out.pick_offsets + [np.full(3, np.nan)] * (len(out.picks) - len(out.pick_offsets))
+        missing = [np.full(3, np.nan)] * (len(out.picks) - len(out.pick_offsets))
         stage_rows += [{"trial": trial, "stage": k, "picked": COLOURS[obj], "expert": COLOURS[expert],
                         "moved_error_m": moved, "pick_xy_m": float(np.linalg.norm(offset[:2])),
-                        "pick_z_m": float(offset[2])}
-                       for k, (obj, expert, offset, moved) in enumerate(zip(out.picks, test.expert_plan(), offsets,
-                                                                            out.moved_errors))]
+                        "pick_z_m": float(offset[2]), "subgoal_xy_m": float(np.linalg.norm(planned[:2])),
+                        "subgoal_z_m": float(planned[2])}
+                       for k, (obj, expert, offset, planned, moved) in enumerate(zip(
+                           out.picks, test.expert_plan(), out.pick_offsets + missing, out.subgoal_offsets + missing,
+                           out.moved_errors))]
         for obj in test.expert_plan():
             distance = float(np.linalg.norm(final[obj] - test.goals[obj]))
             row = {"trial": trial, "object": COLOURS[obj], "distance": distance, "collision": bool(test.collisions),
@@ -80,7 +82,7 @@ def correction_loop(protocol, models, **overrides):
 
     classifier, planner, ndp = models
     settings = dict(n_subgoals=protocol.subgoals_per_stage, max_steps=protocol.max_steps_per_subgoal,
-                    tolerance=protocol.tolerance, ground_truth_stages=protocol.stage_labels == "ground_truth",
+                    tolerance=protocol.tolerance, stage_labels=protocol.stage_labels,
                     planner_input=protocol.planner_input, placement_oracle=protocol.placement_oracle)
     return partial(run_correction, planner=planner, ndp=ndp, classifier=classifier, **settings | overrides)
 
@@ -105,7 +107,8 @@ def stage_metrics(stages: pd.DataFrame, ctx: RunContext) -> dict[str, float]:
     ``stage<k>_right`` the share of stage-k starts that chose the expert's object, ``stage<k>_repeat`` the share that
     went back for the object an earlier stage had already moved; ``stage<k>_pick_xy_m`` / ``_pick_z_m`` the median
     horizontal distance and height of the lip from the picked object's top-face centre where the picking stage
-    ended (the cup grips within the face, 2.5 cm of its centre), ``stage<k>_moved_error_m`` the median distance of
+    ended (the cup grips within the face, 2.5 cm of its centre), ``stage<k>_subgoal_xy_m`` / ``_subgoal_z_m`` the
+    same of the stage's last planned sub-goal (the planner's share of the offset), ``stage<k>_moved_error_m`` the median distance of
     the objects moved before stage k from their goals at its start; the rows go to the run's ``stages`` table."""
     ctx.tracker.log_table(stages, "stages")
     metrics = {}
@@ -113,6 +116,8 @@ def stage_metrics(stages: pd.DataFrame, ctx: RunContext) -> dict[str, float]:
         metrics[f"stage{k + 1}_right"] = float((part.picked == part.expert).mean())
         metrics[f"stage{k + 1}_pick_xy_m"] = float(part.pick_xy_m.median())
         metrics[f"stage{k + 1}_pick_z_m"] = float(part.pick_z_m.median())
+        metrics[f"stage{k + 1}_subgoal_xy_m"] = float(part.subgoal_xy_m.median())
+        metrics[f"stage{k + 1}_subgoal_z_m"] = float(part.subgoal_z_m.median())
         if k > 0:
             metrics[f"stage{k + 1}_moved_error_m"] = float(part.moved_error_m.median())
             earlier = stages[stages.stage < k].groupby("trial").picked.agg(set)

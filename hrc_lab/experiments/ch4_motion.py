@@ -29,8 +29,8 @@ def cross_validated_r2(ctx: RunContext, pairs, folds: int) -> float:
         planner = MOTIONS.build(ctx.cfg.motion, n_labels=1 + ctx.cfg.env.slots, n_subgoals=DESIGNED_SUBGOALS,
                                 seed=ctx.seed)
         planner.fit(pairs.x[train], pairs.labels[train], pairs.subgoals[train], lambda k=k: ctx.trainer(f"cv{k}"),
-                    pairs.indices[train])
-        mean, _ = planner.predict(pairs.x[test], pairs.labels[test], pairs.indices[test])
+                    pairs.indices[train], pairs.references[train])
+        mean, _ = planner.predict(pairs.x[test], pairs.labels[test], pairs.indices[test], pairs.references[test])
         scores.append(r2_score(pairs.subgoals[test], mean))
     return float(np.mean(scores))
 

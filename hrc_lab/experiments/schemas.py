@@ -412,8 +412,10 @@ class Table31Protocol:
     each threshold in ``thresholds`` (delta_r). ``stage_starts``: where each stage's chain of training pairs
     begins (``hrc_lab.motion.two_level.correction_pairs``). ``placement_noise``: std (m, per x-y axis) of the
     expert's aim around each goal when it places a part (``hrc_lab.env.robot.expert.ScriptedExpert``).
-    ``stage_labels``: what names the object each picking stage goes for: ``classifier`` (the thesis' c(x)) or
-    ``ground_truth`` (the expert's plan; a diagnosis of c(x), reported as an ablation). ``planner_input``: what the
+    ``stage_labels``: what names the object each picking stage goes for: the thesis' c(x), read as the object of
+    its label (``classifier``) or as its most likely picking label (``picking_classifier``,
+    :func:`hrc_lab.motion.two_level.picking_label`), or ``ground_truth`` (the expert's plan; a diagnosis of c(x),
+    reported as an ablation). ``planner_input``: what the
     sub-goal planner observes besides r, ``full`` (the thesis' three object positions) or ``selected`` (the
     labelled object's and green's, :func:`hrc_lab.motion.two_level.correction_input`; an ablation).
     ``placement_oracle``: every released object is set exactly onto its goal before the next stage, so a second

@@ -11,8 +11,8 @@ MOTIONS = Registry("motion")
 
 # Where a Ch.3 stage's chain of training pairs begins (hrc_lab.motion.two_level.correction_pairs)
 STAGE_STARTS = ("demonstrated", "executed")
-# What names the object a Ch.3 picking stage goes for (hrc_lab.motion.two_level.run_correction)
-STAGE_LABELS = ("classifier", "ground_truth")
+# What names the object a Ch.3 picking stage goes for (hrc_lab.motion.two_level.picking_label)
+STAGE_LABELS = ("classifier", "picking_classifier", "ground_truth")
 # What the Ch.3 sub-goal planner observes besides r (hrc_lab.motion.two_level.correction_input)
 PLANNER_INPUTS = ("full", "selected")
 # What the neural dynamic planner's training sub-goal s is (hrc_lab.motion.two_level.dynamics_pairs)
@@ -98,6 +98,12 @@ class SubgoalConfig:
     # planner's input asks ("the requested part's position relative to r"); the jitter of r moves them with it.
     # Not in the thesis.
     relative_to_r: bool = False
+    # The planner predicts s minus its stage's reference position (hrc_lab.motion.two_level.stage_reference: the
+    # part a picking stage picks; when placing, the goals' reference, green in Ch.3 and the box in Ch.4) instead of
+    # s in the world frame: a picking stage's last sub-goal is then the same point on the part wherever the part
+    # lies. Not in the thesis; the world-frame regression from 20 demonstrations put Table 3.1's second picks
+    # 2-5 cm from the part's centre (issue 46).
+    relative_targets: bool = False
     ndp: NDPConfig = field(default_factory=NDPConfig)
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)  # Ch.3's c(x); Ch.4 labels its stages
 

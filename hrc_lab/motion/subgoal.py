@@ -45,7 +45,8 @@ class SubgoalPlanner:
     """s = f(x, l): ``fit`` on (observation, label index, sub-goal) triples, ``predict`` the sub-goal mean and std.
 
     ``indices`` (the sub-goal's index within its stage, < ``n_subgoals``) are used only with
-    ``config.label_per_subgoal``, which turns every stage label into ``n_subgoals`` labels.
+    ``config.label_per_subgoal``, which turns every stage label into ``n_subgoals`` labels; ``references`` (N, 3),
+    each pair's stage reference position, only with ``config.relative_targets``, which fits and predicts s minus it.
     """
 
     def __init__(self, config: SubgoalConfig, n_labels: int, n_subgoals: int = 1, seed: int = 0) -> None:
@@ -75,11 +76,24 @@ class SubgoalPlanner:
     def _inputs(self, x: np.ndarray, labels: np.ndarray, indices: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         return self.x_scale(self._features(x)), self._onehot(labels, indices)
 
+    def _origins(self, references: np.ndarray | None, n: int) -> np.ndarray:
+        """What the planner's targets are relative to: the stage references with ``relative_targets``, else 0."""
+        if not self.config.relative_targets:
+            return np.zeros((n, 3))
+        if references is None:
+            raise ValueError("motion.relative_targets needs the stage reference position of every pair")
+        references = np.atleast_2d(references)
+        if references.shape != (n, 3):
+            raise ValueError(f"stage references must have shape ({n}, 3), got {references.shape}")
+        return references
+
     def fit(self, x: np.ndarray, labels: np.ndarray, subgoals: np.ndarray,
-            trainer_factory: Callable | None = None, indices: np.ndarray | None = None) -> SubgoalPlanner:
+            trainer_factory: Callable | None = None, indices: np.ndarray | None = None,
+            references: np.ndarray | None = None) -> SubgoalPlanner:
         """``x`` ends with r, the lip position (3); see ``SubgoalConfig.r_jitter_m``."""
         cfg = self.config
         n = len(x)
+        subgoals = subgoals - self._origins(references, n)
         x, labels, subgoals = jitter_r(x, labels, subgoals, cfg.r_jitter_m, cfg.r_jitter_copies, self.seed)
         indices = None if indices is None else np.tile(indices, len(x) // n)
         self.x_scale, self.s_scale = Standardiser(self._features(x)), Standardiser(subgoals)
@@ -115,9 +129,10 @@ class SubgoalPlanner:
                     cfg.batch_size, trainer_factory)
         return self
 
-    def predict(self, x: np.ndarray, labels: np.ndarray,
-                indices: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def predict(self, x: np.ndarray, labels: np.ndarray, indices: np.ndarray | None = None,
+                references: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         x = np.atleast_2d(x)
+        origins = self._origins(references, len(x))
         labels = np.atleast_1d(labels)
         xs, onehot = self._inputs(x, labels, None if indices is None else np.atleast_1d(indices))
         if self.config.kind == "gpr":
@@ -127,7 +142,7 @@ class SubgoalPlanner:
         else:
             with torch.no_grad():
                 mean, std = (t.numpy() for t in self.network(_tensor(xs), _tensor(onehot)))
-        return self.s_scale.inverse(mean), std * self.s_scale.std
+        return self.s_scale.inverse(mean) + origins, std * self.s_scale.std
 
 
 def base_frame(delta: np.ndarray, r: np.ndarray, base: np.ndarray) -> np.ndarray:
@@ -221,6 +236,10 @@ class StageClassifier:
                     trainer_factory)
         return self
 
-    def __call__(self, x: np.ndarray) -> np.ndarray:
+    def scores(self, x: np.ndarray) -> np.ndarray:
+        """Every label's logit, (N, n_labels)."""
         with torch.no_grad():
-            return self.network(_tensor(self.scale(np.atleast_2d(x)))).argmax(-1).numpy()
+            return self.network(_tensor(self.scale(np.atleast_2d(x)))).numpy()
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return self.scores(x).argmax(-1)

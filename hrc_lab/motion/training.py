@@ -24,7 +24,7 @@ def train_two_level(motion, env, demos, stage_starts: tuple[str, ...], subgoals_
                                                                      lambda: trainer("classifier"))
     pairs = correction_pairs(demos, tuple(stage_starts), planner_input)
     planner = MOTIONS.build(motion, n_labels=4, n_subgoals=subgoals_per_stage, seed=seed)
-    planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: trainer("subgoal"), pairs.indices)
+    planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: trainer("subgoal"), pairs.indices, pairs.references)
     ndp = DynamicPlanner(motion.ndp, env.max_joint_step, env.base_position(), seed=seed)
     ndp.fit(*dynamics_pairs(demos, motion.ndp), lambda: trainer("ndp"))
     return classifier, planner, ndp
@@ -41,7 +41,7 @@ def train_motion_module(motion, slots: int, env, demos, max_steps: int, toleranc
 
     pairs = package_pairs(demos)
     planner = MOTIONS.build(motion, n_labels=1 + slots, n_subgoals=DESIGNED_SUBGOALS, seed=seed)
-    planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: trainer("subgoal"), pairs.indices)
+    planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: trainer("subgoal"), pairs.indices, pairs.references)
     ndp = DynamicPlanner(motion.ndp, env.max_joint_step, env.base_position(), seed=seed)
     ndp.fit(*dynamics_pairs(demos, motion.ndp), lambda: trainer("ndp"))
     for name, model in (("subgoal", getattr(planner, "network", None)), ("ndp", ndp.network)):

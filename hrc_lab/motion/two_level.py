@@ -41,10 +41,12 @@ class SubgoalPairs:
     subgoals: np.ndarray  # (N, 3)
     groups: np.ndarray  # (N,) demo index, for grouped cross-validation
     indices: np.ndarray  # (N,) the sub-goal's index within its stage
+    references: np.ndarray  # (N, 3) the stage's reference position (SubgoalConfig.relative_targets)
 
 
 def package_pairs(demos) -> SubgoalPairs:
-    """Ch.4 pairs (Fig. 4.4): one per designed sub-goal, x = [o_selected or p, r at the sub-goal's start]."""
+    """Ch.4 pairs (Fig. 4.4): one per designed sub-goal, x = [o_selected or p, r at the sub-goal's start]; the
+    stage's reference is o_selected or p."""
     xs, labels, targets, groups, indices = [], [], [], [], []
     for k, demo in enumerate(demos):
         slot_of = {p: s for p, s in demo.episode["configuration"]}
@@ -62,7 +64,15 @@ def package_pairs(demos) -> SubgoalPairs:
                 targets.append(demo.subgoals[at[0]])
                 groups.append(k)
                 indices.append(i)
-    return SubgoalPairs(np.array(xs), np.array(labels), np.array(targets), np.array(groups), np.array(indices))
+    x = np.array(xs)
+    return SubgoalPairs(x, np.array(labels), np.array(targets), np.array(groups), np.array(indices), x[:, :3])
+
+
+def correction_reference(objects: np.ndarray, label: int) -> np.ndarray:
+    """The reference position of Ch.3 stage ``label`` (``SubgoalConfig.relative_targets``): the part a picking
+    stage picks; green, the goals' reference (Fig. 3.5), when placing."""
+    objects = np.asarray(objects).reshape(-1, 3)
+    return objects[label // 2 + 1] if label % 2 == PICK else objects[0]
 
 
 def correction_input(objects: np.ndarray, r: np.ndarray, label: int, kind: str = "full") -> np.ndarray:
@@ -97,7 +107,7 @@ def correction_pairs(demos, starts: tuple[str, ...] = ("demonstrated",), planner
     """
     if not starts or set(starts) - set(STAGE_STARTS):
         raise ValueError(f"stage starts must be a non-empty subset of {STAGE_STARTS}, got {list(starts)}")
-    xs, labels, targets, groups, indices = [], [], [], [], []
+    xs, labels, targets, groups, indices, references = [], [], [], [], [], []
     for k, demo in enumerate(demos):
         ended = demo.obs["lip_target_pos"][demo.stage_bounds[0][2]] if len(demo.stage_bounds) else None
         for (obj, stage, start, _), points in zip(demo.stage_bounds, demo.stage_subgoals):
@@ -113,9 +123,11 @@ def correction_pairs(demos, starts: tuple[str, ...] = ("demonstrated",), planner
                     targets.append(point)
                     groups.append(k)
                     indices.append(i)
+                    references.append(correction_reference(objects, label))
                     previous = point
             ended = points[-1]
-    return SubgoalPairs(np.array(xs), np.array(labels), np.array(targets), np.array(groups), np.array(indices))
+    return SubgoalPairs(np.array(xs), np.array(labels), np.array(targets), np.array(groups), np.array(indices),
+                        np.array(references))
 
 
 def dynamics_pairs(demos, ndp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -159,6 +171,8 @@ class Rollout:
     picks: list[int] = field(default_factory=list)  # Ch.3: the object each picking stage went for, in order
     # Ch.3: the lip minus the picked object's top-face centre when each picking stage ended (before the grip), m
     pick_offsets: list[np.ndarray] = field(default_factory=list)
+    # Ch.3: the stage's last planned sub-goal minus the same top-face centre, m (the planner's part of the offset)
+    subgoal_offsets: list[np.ndarray] = field(default_factory=list)
     # Ch.3: at each picking stage's start, how far the objects moved before it are from their goals (worst), m
     moved_errors: list[float] = field(default_factory=list)
     subgoals: int = 0  # sub-goals the dynamic planner was sent to
@@ -198,10 +212,24 @@ def reach(env, ndp, subgoal: np.ndarray, suction: bool, max_steps: int, toleranc
     return max_steps, REACHED if np.linalg.norm(subgoal - env.eef_position()) < tolerance else CAPPED
 
 
-def plan(planner, x: np.ndarray, label: int, index: int, timings: list[float]) -> np.ndarray:
-    """The mean sub-goal for observation ``x``, stage ``label`` and the sub-goal's ``index`` in its stage."""
+def picking_label(classifier, x: np.ndarray, rule: str) -> int:
+    """The Ch.3 picking label (0 pick blue, 2 pick red) a stage starting at raw observation ``x`` (objects, r)
+    goes for, by ``rule``: ``classifier``, the object of c(x)'s label, whichever stage it names; or
+    ``picking_classifier``, c(x)'s most likely picking label (:meth:`~hrc_lab.motion.subgoal.StageClassifier.scores`).
+    A placing stage has just ended there, and its last states, the part resting on its goal under the lip, are
+    labelled as placing it in the demonstrations, so the first rule can send the arm back to that part."""
+    if rule == "picking_classifier":
+        return 2 * int(np.argmax(classifier.scores(x[None])[0][PICK::2]))
+    if rule == "classifier":
+        return 2 * (int(classifier(x[None])[0]) // 2)
+    raise ValueError(f"picking label rule must be 'classifier' or 'picking_classifier', got '{rule}'")
+
+
+def plan(planner, x: np.ndarray, label: int, index: int, reference: np.ndarray, timings: list[float]) -> np.ndarray:
+    """The mean sub-goal for observation ``x``, stage ``label``, the sub-goal's ``index`` in its stage and the
+    stage's ``reference`` position."""
     start = time.perf_counter()
-    mean, _ = planner.predict(x[None], np.array([label]), np.array([index]))
+    mean, _ = planner.predict(x[None], np.array([label]), np.array([index]), reference[None])
     timings.append((time.perf_counter() - start) * 1e3)
     return mean[0]
 
@@ -223,7 +251,7 @@ class TwoLevelMotion:
         for i in range(self.n_subgoals):
             feature = env.object_positions()[obj] if stage == PICK else env.box_position()
             subgoal = plan(self.planner, np.concatenate([feature, env.lip_target_position()]),
-                           0 if stage == PICK else 1 + slot, i, out.planning_ms)
+                           0 if stage == PICK else 1 + slot, i, feature, out.planning_ms)
             steps, status = reach(env, self.ndp, subgoal, stage == PLACE or i > 0, self.max_steps, self.tolerance)
             out.count(steps, status)
             if status in (COLLISION, HORIZON):
@@ -257,13 +285,14 @@ def run_package(env, motion: TwoLevelMotion) -> Rollout:
 
 
 def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps: int = 30,
-                   tolerance: float = 0.008, ground_truth_stages: bool = False,
+                   tolerance: float = 0.008, stage_labels: str = "classifier",
                    planner_input: str = "full", placement_oracle: bool = False,
                    manipulations: int | None = None) -> tuple[Rollout, np.ndarray]:
     """One error-correction trial: for each manipulation the case needs, the classifier c(x) labels the stage
     from the raw observation at its start (which object to pick), the placing stage of that object follows, and
-    the planner proposes the sub-goals of each stage. ``ground_truth_stages``: the expert's plan names the object
-    to pick instead of c(x) (a diagnosis of the classifier, not the thesis' system); ``planner_input`` as the
+    the planner proposes the sub-goals of each stage. ``stage_labels``: a rule of :func:`picking_label`, or
+    ``ground_truth``: the expert's plan names the object to pick instead of c(x) (a diagnosis of the classifier,
+    not the thesis' system); ``planner_input`` as the
     planner was trained (:func:`correction_input`); ``placement_oracle``: each released object is set exactly onto
     its goal before the next stage (a diagnosis of how a placement error propagates); ``manipulations``: stop after
     that many pick-and-place manipulations, the released part settled (DAgger's roll-in,
@@ -276,11 +305,11 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
     for k in range(2 * (len(order) if manipulations is None else manipulations)):
         if k % 2 == 1:
             label += 1
-        elif ground_truth_stages:
+        elif stage_labels == "ground_truth":
             label = env.stage_label(order[k // 2], PICK)
         else:
-            x = np.concatenate([env.object_positions().ravel(), env.eef_position()])
-            label = 2 * (int(classifier(x[None])[0]) // 2)  # the picking label of the object c(x) points at
+            label = picking_label(classifier, np.concatenate([env.object_positions().ravel(), env.eef_position()]),
+                                  stage_labels)
         obj, stage = divmod(label, 2)
         obj += 1  # labels count blue (1) and red (2); green is never moved
         if stage == PICK:
@@ -291,7 +320,7 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
         before = out.steps
         for i in range(n_subgoals):
             subgoal = plan(planner, correction_input(objects, env.lip_target_position(), label, planner_input), label,
-                           i, out.planning_ms)
+                           i, correction_reference(objects, label), out.planning_ms)
             steps, status = reach(env, ndp, subgoal, stage == PLACE or i > 0, max_steps, tolerance)
             out.count(steps, status)
             if status in (COLLISION, HORIZON):
@@ -300,6 +329,7 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
         if stage == PICK:  # the picking stage ends at the top face: hold still one step with suction on
             top = env.object_positions()[obj] + np.array([0.0, 0.0, env.cell_objects[obj].half_size[2]])
             out.pick_offsets.append(env.eef_position() - top)
+            out.subgoal_offsets.append(subgoal - top)
             env.step(GRIP)
             out.steps += 1
             if env.suction.held != obj:

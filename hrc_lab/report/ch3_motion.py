@@ -40,7 +40,7 @@ CONTROLLERS = {"ndp": "Neural dynamic planner (Δ only)", "ndp_direction": "NDP,
 
 
 # the per-stage metrics of hrc_lab.experiments.ch3_motion.stage_metrics
-STAGE_METRIC = re.compile(r"stage\d_(right|repeat|pick_xy_m|pick_z_m|moved_error_m)")
+STAGE_METRIC = re.compile(r"stage\d_(right|repeat|pick_xy_m|pick_z_m|subgoal_xy_m|subgoal_z_m|moved_error_m)")
 METHODS = {"tc_vi": "the thesis' planner", "tc_vi_indexed": "the same with the sub-goal index in its label"}
 
 
@@ -103,7 +103,9 @@ def table_3_1(runs: pd.DataFrame) -> Section:
                      "whose object was the expert's, `stageK_repeat` the share that went back for an object already "
                      "moved; `stageK_pick_xy_m` / `_pick_z_m` the median horizontal distance and height (m) of the "
                      "cup's lip from that object's top-face centre where the picking stage ended (the cup grips "
-                     "within the 5 cm face, so within about 0.025 m of its centre); `stage2_moved_error_m` the median "
+                     "within the 5 cm face, so within about 0.025 m of its centre); `stageK_subgoal_xy_m` / "
+                     "`_subgoal_z_m` (where logged) the same of the stage's last planned sub-goal, the planner's share "
+                     "of the offset; `stage2_moved_error_m` the median "
                      "distance of the first object from its goal when the second picking stage started.", "",
                  stages.reset_index().to_markdown(index=False)]
     if "planning_ms" in runs:

@@ -32,7 +32,7 @@ import gymnasium as gym
 import numpy as np
 
 from hrc_lab.env.robot.cell import PICK, PLACE
-from hrc_lab.motion.two_level import correction_input
+from hrc_lab.motion.two_level import correction_input, correction_reference, picking_label
 
 
 def needs_correction(predicted: np.ndarray, subgoal: np.ndarray, delta_g: float) -> bool:
@@ -97,7 +97,7 @@ class CorrectionGuide:
     def reset(self, env: Any) -> None:
         cell = env.cell
         x = np.concatenate([cell.object_positions().ravel(), cell.eef_position()])
-        self.label = 2 * (int(self.classifier(x[None])[0]) // 2)  # picking label of the object c(x_1) names
+        self.label = picking_label(self.classifier, x, "classifier")  # the object c(x_1) names
         self.object = self.label // 2 + 1  # labels count blue (1) and red (2)
         self.stage, self.index, self.steps, self.done = PICK, 0, 0, False
         self.objects = cell.object_positions().ravel()
@@ -117,7 +117,8 @@ class CorrectionGuide:
                     self.done = True  # the stage's last sub-goal: hold it
         if self.current is None:
             x = correction_input(self.objects, env.lip(), self.label)
-            mean, _ = self.planner.predict(x[None], np.array([self.label]), np.array([self.index]))
+            reference = correction_reference(self.objects, self.label)
+            mean, _ = self.planner.predict(x[None], np.array([self.label]), np.array([self.index]), reference[None])
             self.current, self.steps = mean[0], 0
         self.steps += 1
         return self.current
