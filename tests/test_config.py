@@ -143,8 +143,9 @@ def test_every_experiment_has_a_report_section_and_topic(compose_config, experim
     ("protocol.stage_starts=[planned]", r"protocol\.stage_starts"),
     ("protocol.placement_noise=-0.01", r"protocol\.placement_noise"),
     ("protocol.action_noise=-0.01", r"protocol\.action_noise must be >= 0 rad"),
-    ("protocol.stage_labels=oracle", r"protocol\.stage_labels must be one of \['classifier', 'ground_truth'\]"),
-    ("protocol.planner_input=relative", r"protocol\.planner_input must be one of \['full', 'selected'\]"),
+    ("protocol.stage_labels=oracle",
+     r"protocol\.stage_labels must be one of \['classifier', 'picking_classifier', 'ground_truth'\]"),
+    ("motion.planner_input=relative", r"motion\.planner_input must be one of \['full', 'selected'\]"),
 ])
 def test_table_3_1_protocol_errors_name_the_key(compose_config, override, key):
     with pytest.raises(ConfigError, match=key):

@@ -287,7 +287,7 @@ def test_relative_to_r_feeds_every_position_minus_r(compose_config):
                           np.hstack([part, r]))  # the default: absolute positions
     with pytest.raises(ValueError, match="relative_to_r needs x"):
         relative._features(np.zeros((1, 5)))
-    cfg = compose_config("experiment=ch3/table_3_1", "protocol.planner_input=selected", "motion.relative_to_r=true")
+    cfg = compose_config("experiment=ch3/table_3_1", "motion.planner_input=selected", "motion.relative_to_r=true")
     assert validate_config(cfg).motion.relative_to_r
 
 

@@ -30,7 +30,7 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
 
     def train(data: list) -> tuple:
         return train_two_level(ctx.cfg.motion, env, data, protocol.stage_starts, protocol.subgoals_per_stage,
-                               ctx.trainer, ctx.seed, protocol.planner_input)
+                               ctx.trainer, ctx.seed)
 
     collect = dagger_collector(ctx) if protocol.dagger_rounds else None
     models, aggregated = dagger(train, collect, demos, protocol.dagger_rounds)
@@ -83,7 +83,7 @@ def correction_loop(protocol, models, **overrides):
     classifier, planner, ndp = models
     settings = dict(n_subgoals=protocol.subgoals_per_stage, max_steps=protocol.max_steps_per_subgoal,
                     tolerance=protocol.tolerance, stage_labels=protocol.stage_labels,
-                    planner_input=protocol.planner_input, placement_oracle=protocol.placement_oracle)
+                    planner_input=planner.config.planner_input, placement_oracle=protocol.placement_oracle)
     return partial(run_correction, planner=planner, ndp=ndp, classifier=classifier, **settings | overrides)
 
 
@@ -108,8 +108,9 @@ def stage_metrics(stages: pd.DataFrame, ctx: RunContext) -> dict[str, float]:
     went back for the object an earlier stage had already moved; ``stage<k>_pick_xy_m`` / ``_pick_z_m`` the median
     horizontal distance and height of the lip from the picked object's top-face centre where the picking stage
     ended (the cup grips within the face, 2.5 cm of its centre), ``stage<k>_subgoal_xy_m`` / ``_subgoal_z_m`` the
-    same of the stage's last planned sub-goal (the planner's share of the offset), ``stage<k>_moved_error_m`` the median distance of
-    the objects moved before stage k from their goals at its start; the rows go to the run's ``stages`` table."""
+    same of the stage's last planned sub-goal (the planner's share of the offset), ``stage<k>_moved_error_m`` the
+    median distance of the objects moved before stage k from their goals at its start; the rows go to the run's
+    ``stages`` table."""
     ctx.tracker.log_table(stages, "stages")
     metrics = {}
     for k, part in stages.groupby("stage"):

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from hrc_lab.env.fetch import FETCH_ENV_IDS
 from hrc_lab.env.robot.settings import CELL_CAMERA, YAW_ORDERS
 from hrc_lab.grasp.configs import GRASPS
-from hrc_lab.motion.configs import PLANNER_INPUTS, STAGE_LABELS, STAGE_STARTS
+from hrc_lab.motion.configs import STAGE_LABELS, STAGE_STARTS
 from hrc_lab.reasoning.configs import CH4 as REASONING_CH4
 from hrc_lab.reasoning.configs import CH5 as REASONING_CH5
 from hrc_lab.reasoning.configs import REASONERS
@@ -415,9 +415,7 @@ class Table31Protocol:
     ``stage_labels``: what names the object each picking stage goes for: the thesis' c(x), read as the object of
     its label (``classifier``) or as its most likely picking label (``picking_classifier``,
     :func:`hrc_lab.motion.two_level.picking_label`), or ``ground_truth`` (the expert's plan; a diagnosis of c(x),
-    reported as an ablation). ``planner_input``: what the
-    sub-goal planner observes besides r, ``full`` (the thesis' three object positions) or ``selected`` (the
-    labelled object's and green's, :func:`hrc_lab.motion.two_level.correction_input`; an ablation).
+    reported as an ablation). What the sub-goal planner observes is the ``motion`` config's ``planner_input``.
     ``placement_oracle``: every released object is set exactly onto its goal before the next stage, so a second
     object's trial starts as the demonstrations' did (a diagnosis; the first object's SR is then not a result).
     ``action_noise``: std (rad) of Gaussian noise on the joint deltas the demonstrations execute, the expert's
@@ -438,7 +436,6 @@ class Table31Protocol:
     stage_starts: list[str] = field(default_factory=lambda: ["demonstrated"])
     placement_noise: float = 0.0
     stage_labels: str = "classifier"
-    planner_input: str = "full"
     placement_oracle: bool = False
     action_noise: float = 0.0
     dagger_rounds: int = 0
@@ -453,9 +450,6 @@ class Table31Protocol:
             raise ValueError(f"protocol.action_noise must be >= 0 rad, got {self.action_noise}")
         if self.stage_labels not in STAGE_LABELS:
             raise ValueError(f"protocol.stage_labels must be one of {list(STAGE_LABELS)}, got '{self.stage_labels}'")
-        if self.planner_input not in PLANNER_INPUTS:
-            raise ValueError(f"protocol.planner_input must be one of {list(PLANNER_INPUTS)}, "
-                             f"got '{self.planner_input}'")
         if self.placement_noise < 0:
             raise ValueError(f"protocol.placement_noise must be >= 0 m, got {self.placement_noise}")
         if self.demos < 1 or self.trials < 1:
@@ -739,7 +733,7 @@ PROTOCOLS.register("ch6_table_6_2_robot", Table62RobotProtocol, f"{CH6}:table_6_
 # The reasoning methods of a family are those registered with it (hrc_lab/reasoning/configs.py).
 CH4_REASONERS = REASONERS.family(REASONING_CH4)
 CH5_PLANNERS = REASONERS.family(REASONING_CH5)
-MOTION_PLANNERS = ("tc_vi", "tc_vi_indexed", "vi", "mlp", "gpr")
+MOTION_PLANNERS = ("tc_vi", "tc_vi_indexed", "tc_vi_object", "vi", "mlp", "gpr")
 ACTION_DETECTORS = ("hand_lstm_fcn", "cnn_lstm", "hand_cnn", "cnn_lstm_video")
 GRASP_SOLVERS = tuple(GRASPS.names())
 ROBOT_CELLS = ("package_to_order", "error_correction")

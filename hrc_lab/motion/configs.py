@@ -104,12 +104,18 @@ class SubgoalConfig:
     # lies. Not in the thesis; the world-frame regression from 20 demonstrations put Table 3.1's second picks
     # 2-5 cm from the part's centre (issue 46).
     relative_targets: bool = False
+    # What the Ch.3 sub-goal planner observes besides r (hrc_lab.motion.two_level.correction_input): "full", the
+    # thesis' three object positions (3.3); "selected", the labelled object's and green's. Ch.4's input is its own
+    # (o_selected or p, Fig. 4.4).
+    planner_input: str = "full"
     ndp: NDPConfig = field(default_factory=NDPConfig)
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)  # Ch.3's c(x); Ch.4 labels its stages
 
     def __post_init__(self) -> None:
         if self.kind not in ("vi", "mlp", "gpr"):
             raise ValueError(f"motion.kind must be 'vi', 'mlp' or 'gpr', got '{self.kind}'")
+        if self.planner_input not in PLANNER_INPUTS:
+            raise ValueError(f"motion.planner_input must be one of {list(PLANNER_INPUTS)}, got '{self.planner_input}'")
         if self.gpr_kernel not in GPR_KERNELS:
             raise ValueError(f"motion.gpr_kernel must be one of {list(GPR_KERNELS)}, got '{self.gpr_kernel}'")
         for key in ("hidden", "lr", "steps", "batch_size", "likelihood_std", "gpr_max_points"):
@@ -154,6 +160,7 @@ class RRTConnectConfig:
 
 MOTIONS.register("tc_vi", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
 MOTIONS.register("tc_vi_indexed", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
+MOTIONS.register("tc_vi_object", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
 MOTIONS.register("vi", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
 MOTIONS.register("mlp", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")
 MOTIONS.register("gpr", SubgoalConfig, "hrc_lab.motion.subgoal:build_subgoal_planner")

@@ -13,8 +13,8 @@ from hrc_lab.motion import MOTIONS
 
 
 def train_two_level(motion, env, demos, stage_starts: tuple[str, ...], subgoals_per_stage: int,
-                    trainer: Callable, seed: int, planner_input: str = "full"):
-    """Task classifier c(x), sub-goal planner (observing ``planner_input``, see
+                    trainer: Callable, seed: int):
+    """Task classifier c(x), sub-goal planner (observing ``motion.planner_input``, see
     :func:`~hrc_lab.motion.two_level.correction_input`; pairs from the stage starts ``stage_starts``) and neural
     dynamic planner (joint limit and base frame of the error-correction cell ``env``) from the demonstrations."""
     from hrc_lab.motion.subgoal import DynamicPlanner, StageClassifier
@@ -22,7 +22,7 @@ def train_two_level(motion, env, demos, stage_starts: tuple[str, ...], subgoals_
 
     classifier = StageClassifier(motion.classifier, 4, seed=seed).fit(*classifier_pairs(demos),
                                                                      lambda: trainer("classifier"))
-    pairs = correction_pairs(demos, tuple(stage_starts), planner_input)
+    pairs = correction_pairs(demos, tuple(stage_starts), motion.planner_input)
     planner = MOTIONS.build(motion, n_labels=4, n_subgoals=subgoals_per_stage, seed=seed)
     planner.fit(pairs.x, pairs.labels, pairs.subgoals, lambda: trainer("subgoal"), pairs.indices, pairs.references)
     ndp = DynamicPlanner(motion.ndp, env.max_joint_step, env.base_position(), seed=seed)

@@ -41,7 +41,9 @@ CONTROLLERS = {"ndp": "Neural dynamic planner (Δ only)", "ndp_direction": "NDP,
 
 # the per-stage metrics of hrc_lab.experiments.ch3_motion.stage_metrics
 STAGE_METRIC = re.compile(r"stage\d_(right|repeat|pick_xy_m|pick_z_m|subgoal_xy_m|subgoal_z_m|moved_error_m)")
-METHODS = {"tc_vi": "the thesis' planner", "tc_vi_indexed": "the same with the sub-goal index in its label"}
+METHODS = {"tc_vi": "the thesis' planner", "tc_vi_indexed": "the same with the sub-goal index in its label",
+           "tc_vi_object": "★ hrc_lab's: the same, observing the stage's object and green relative to r and planning "
+                           "each sub-goal relative to the stage's object (green when placing)"}
 
 
 @register_section("table_3_1")

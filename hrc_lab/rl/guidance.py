@@ -116,7 +116,7 @@ class CorrectionGuide:
                 else:
                     self.done = True  # the stage's last sub-goal: hold it
         if self.current is None:
-            x = correction_input(self.objects, env.lip(), self.label)
+            x = correction_input(self.objects, env.lip(), self.label, self.planner.config.planner_input)
             reference = correction_reference(self.objects, self.label)
             mean, _ = self.planner.predict(x[None], np.array([self.label]), np.array([self.index]), reference[None])
             self.current, self.steps = mean[0], 0
