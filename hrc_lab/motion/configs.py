@@ -98,11 +98,11 @@ class SubgoalConfig:
     # planner's input asks ("the requested part's position relative to r"); the jitter of r moves them with it.
     # Not in the thesis.
     relative_to_r: bool = False
-    # The planner predicts s minus its stage's reference position (hrc_lab.motion.two_level.stage_reference: the
-    # part a picking stage picks; when placing, the goals' reference, green in Ch.3 and the box in Ch.4) instead of
-    # s in the world frame: a picking stage's last sub-goal is then the same point on the part wherever the part
-    # lies. Not in the thesis; the world-frame regression from 20 demonstrations put Table 3.1's second picks
-    # 2-5 cm from the part's centre (issue 46).
+    # The planner predicts s minus its stage's reference position (the part a picking stage picks; when placing,
+    # the goals' reference: green in Ch.3, hrc_lab.motion.two_level.correction_reference, and the box p in Ch.4,
+    # package_pairs) instead of s in the world frame: a picking stage's last sub-goal is then the same point on the
+    # part wherever the part lies. Not in the thesis; the world-frame regression from 20 demonstrations put Table
+    # 3.1's second picks 2-22 cm from the part's centre (issue 46).
     relative_targets: bool = False
     # What the Ch.3 sub-goal planner observes besides r (hrc_lab.motion.two_level.correction_input): "full", the
     # thesis' three object positions (3.3); "selected", the labelled object's and green's. Ch.4's input is its own
