@@ -41,9 +41,11 @@ CONTROLLERS = {"ndp": "Neural dynamic planner (Δ only)", "ndp_direction": "NDP,
 
 # the per-stage metrics of hrc_lab.experiments.ch3_motion.stage_metrics
 STAGE_METRIC = re.compile(r"stage\d_(right|repeat|pick_xy_m|pick_z_m|subgoal_xy_m|subgoal_z_m|moved_error_m)")
-METHODS = {"tc_vi": "the thesis' planner", "tc_vi_indexed": "the same with the sub-goal index in its label",
-           "tc_vi_object": "★ hrc_lab's: the same, observing the stage's object and green relative to r and planning "
-                           "each sub-goal relative to the stage's object (green when placing)"}
+METHODS = {"tc_vi": "the thesis' planner",
+           "tc_vi_indexed": "the same with the sub-goal index in its label (not in the thesis: the thesis' planner "
+                            "infers its progress through a stage from r)",
+           "tc_vi_object": "★ hrc_lab's: tc_vi_indexed observing the stage's object and green relative to r and "
+                           "planning each sub-goal relative to the stage's object (green when placing)"}
 
 
 @register_section("table_3_1")
@@ -82,8 +84,7 @@ def table_3_1(runs: pd.DataFrame) -> Section:
         "the robosuite cell: an object succeeds when it ends within δr of its goal and no "
         "forbidden contact happened. Steps: control steps the robot spent on the object (thesis: at δr 0.08 / 0.06). "
         f"{over_seeds(runs, start=True)}; thesis values in brackets. Planners: "
-        + "; ".join(f"`{m}` {METHODS.get(m, m)}" for m in methods)
-        + " (not in the thesis: the thesis' planner infers its progress through a stage from r).",
+        + "; ".join(f"`{m}` {METHODS.get(m, m)}" for m in methods) + ".",
         "",
         pd.DataFrame(rows).to_markdown(index=False) if rows else "(no rows)",
     ]
