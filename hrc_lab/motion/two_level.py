@@ -68,11 +68,17 @@ def package_pairs(demos) -> SubgoalPairs:
     return SubgoalPairs(x, np.array(labels), np.array(targets), np.array(groups), np.array(indices), x[:, :3])
 
 
+def correction_object(label: int) -> int:
+    """The object Ch.3 stage ``label`` moves (3.3: 0 / 1 pick / place blue, 2 / 3 red): blue 1, red 2; green (0)
+    is never moved."""
+    return label // 2 + 1
+
+
 def correction_reference(objects: np.ndarray, label: int) -> np.ndarray:
     """The reference position of Ch.3 stage ``label`` (``SubgoalConfig.relative_targets``): the part a picking
     stage picks; green, the goals' reference (Fig. 3.5), when placing."""
     objects = np.asarray(objects).reshape(-1, 3)
-    return objects[label // 2 + 1] if label % 2 == PICK else objects[0]
+    return objects[correction_object(label)] if label % 2 == PICK else objects[0]
 
 
 def correction_input(objects: np.ndarray, r: np.ndarray, label: int, kind: str = "full") -> np.ndarray:
@@ -84,7 +90,7 @@ def correction_input(objects: np.ndarray, r: np.ndarray, label: int, kind: str =
         raise ValueError(f"planner input must be one of {list(PLANNER_INPUTS)}, got '{kind}'")
     objects = np.asarray(objects).reshape(-1, 3)
     if kind == "selected":
-        objects = objects[[label // 2 + 1, 0]]  # labels count blue (1) and red (2); green (0) is never moved
+        objects = objects[[correction_object(label), 0]]
     return np.concatenate([objects.ravel(), r])
 
 
@@ -310,8 +316,7 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
         else:
             label = picking_label(classifier, np.concatenate([env.object_positions().ravel(), env.eef_position()]),
                                   stage_labels)
-        obj, stage = divmod(label, 2)
-        obj += 1  # labels count blue (1) and red (2); green is never moved
+        obj, stage = correction_object(label), label % 2
         if stage == PICK:
             errors = [np.linalg.norm(env.object_positions()[o] - env.goals[o]) for o in out.picks]
             out.moved_errors.append(float(max(errors, default=np.nan)))

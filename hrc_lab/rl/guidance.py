@@ -32,7 +32,7 @@ import gymnasium as gym
 import numpy as np
 
 from hrc_lab.env.robot.cell import PICK, PLACE
-from hrc_lab.motion.two_level import correction_input, correction_reference, picking_label
+from hrc_lab.motion.two_level import correction_input, correction_object, correction_reference, picking_label
 
 
 def needs_correction(predicted: np.ndarray, subgoal: np.ndarray, delta_g: float) -> bool:
@@ -98,7 +98,7 @@ class CorrectionGuide:
         cell = env.cell
         x = np.concatenate([cell.object_positions().ravel(), cell.eef_position()])
         self.label = picking_label(self.classifier, x, "classifier")  # the object c(x_1) names
-        self.object = self.label // 2 + 1  # labels count blue (1) and red (2)
+        self.object = correction_object(self.label)
         self.stage, self.index, self.steps, self.done = PICK, 0, 0, False
         self.objects = cell.object_positions().ravel()
         self.current: np.ndarray | None = None
