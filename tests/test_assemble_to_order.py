@@ -10,6 +10,7 @@ from hrc_lab.env.assembly.spec import (
     Scenario,
     action_labels,
     ambiguous_scenarios,
+    indistinguishable,
     next_object,
     parse_assembly,
     plan_tokens,
@@ -52,6 +53,15 @@ def test_shared_pairs_make_exactly_the_expected_scenarios_ambiguous():
     ambiguous = {(s.goal, tuple(sorted(s.assembled))) for s in ambiguous_scenarios(SPEC)}
     assert ambiguous == {(0, (2,)), (1, (2,)), (0, (3,)), (2, (3,)), (1, (6,)), (2, (6,))}
     assert ambiguous_scenarios(AssembleToOrderSpec(n_goals=1)) == []
+
+
+def test_indistinguishable_scenarios_are_the_goals_with_the_same_assembled_parts():
+    # g0 = o3 o1 o1 o1 o2 o2, g1 = o2 o1 o2 o3 o1 o1, g2 = o1 o2 o1 o2 o3 o1: o1 on p3 is g0's and g2's
+    assert indistinguishable(SPEC, Scenario(0, frozenset({3}))) == [Scenario(0, frozenset({3})),
+                                                                    Scenario(2, frozenset({3}))]
+    assert indistinguishable(SPEC, Scenario(0, frozenset({1, 3}))) == [Scenario(0, frozenset({1, 3}))]
+    assert len(indistinguishable(SPEC, Scenario(1, frozenset()))) == 3  # before the first placement: every goal
+    assert indistinguishable(AssembleToOrderSpec(n_goals=1), Scenario(0, frozenset())) == [Scenario(0, frozenset())]
 
 
 @pytest.mark.parametrize(

@@ -258,6 +258,7 @@ def test_the_loop_drives_the_robot_cell_on_a_short_session(monkeypatch):
     assert [(p.part, p.position, p.success) for p in result["human"]] == [(human.part, human.position, True)]
     assert [(p.part, p.position, p.success) for p in result["placements"]] == [(*screw.robot, True)]
     assert result["complete"] and result["assembly"] == [("o1", 1), ("o2", 2)] and result["sc"] == [True]
+    assert result["sg_determined"] == [True] and result["sc_determined"] == [True]  # one goal: every answer is fixed
     assert len(result["latency_s"]) == 1 and 0 < result["latency_s"][0] < 1.0
     moving = result["placements"][0].steps // 4
     assert len(frames) == len(clip.frames) + moving and frames[0].shape == (480, 640 + 640, 3)

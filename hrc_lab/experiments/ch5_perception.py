@@ -172,6 +172,11 @@ def assembly_sessions(ctx: RunContext, with_robot: bool) -> dict[str, float]:
         for k in ("ad", "sg", "sc"):
             values = [v for r in results[kind] for v in r[k]]
             metrics[f"{k}_acc{suffix}"] = float(np.mean(values)) if values else float("nan")
+        for k in ("sg", "sc"):  # the events whose right answer the true assembly so far fixes
+            marks = [m for r in results[kind] for m in r[f"{k}_determined"]]
+            right = [v for r in results[kind] for v, m in zip(r[k], r[f"{k}_determined"]) if m]
+            metrics[f"{k}_determined_share{suffix}"] = float(np.mean(marks)) if marks else float("nan")
+            metrics[f"{k}_acc_determined{suffix}"] = float(np.mean(right)) if right else float("nan")
         if cell is not None:
             metrics.update({f"{key}{suffix}": value for key, value in robot_metrics(results[kind]).items()})
     every = results["normal"] + results["fast"]

@@ -1,7 +1,9 @@
 """Table 5.2 scoring of a whole assembly session streamed through Algorithm 3 (:mod:`hrc_lab.perception.pipeline`):
 action detection (AD) per window, semantic guidance (SG) after every human placement and semantic control (SC) per
-screw, against the session's true frame labels and steps (:func:`hrc_lab.env.assembly.video.render_session`); with
-the robot cell (:mod:`hrc_lab.env.robot.assembly_cell`), the robot's placements and the final assembly too."""
+screw, against the session's true frame labels and steps (:func:`hrc_lab.env.assembly.video.render_session`), each
+SG and SC event also marked *determined* when the true assembly so far leaves one right answer (no other goal
+assembles the same parts there and wants another); with the robot cell (:mod:`hrc_lab.env.robot.assembly_cell`), the
+robot's placements and the final assembly too."""
 
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ from hrc_lab.env.assembly.spec import (
     AssembleToOrderSpec,
     Scenario,
     action_labels,
+    indistinguishable,
     next_object,
     parse_assembly,
     plan_tokens,
@@ -57,7 +60,8 @@ def run_session(detector: ActionDetector, planner, spec: AssembleToOrderSpec, cl
                 cell_view: FrameRecorder | None = None, recovery: bool = False) -> dict:
     """Stream one session through Algorithm 3 and score it: AD per window (majority label of its frames), SG at
     the end of the gap after every human placement (the guidance on screen against the truth), SC per screw (the
-    first control command issued during it).
+    first control command issued during it); ``sg_determined`` / ``sc_determined`` mark the events whose right
+    answer the true assembly so far fixes (:func:`~hrc_lab.env.assembly.spec.indistinguishable`).
 
     Without ``cell`` the robot places what the video shows it placed, if it was asked. With the robot ``cell``
     (reset by the caller), every human placement the loop records puts the part there, and every Semantic Control
@@ -102,7 +106,7 @@ def run_session(detector: ActionDetector, planner, spec: AssembleToOrderSpec, cl
             elif annotated is not None:
                 annotated.append(annotate(frame, state, loop))
     truth_assembled: set[int] = set()
-    sg, sc = [], []
+    sg, sc, sg_determined, sc_determined = [], [], [], []
     for step, start, end in marks:
         before = Scenario(goal, frozenset(truth_assembled))
         if step.kind == "assemble":
@@ -110,17 +114,23 @@ def run_session(detector: ActionDetector, planner, spec: AssembleToOrderSpec, cl
             now = Scenario(goal, frozenset(truth_assembled))
             plan = planner.plan([shown[end]])[0]
             sg.append(all(plan.guidance[t] == plan_tokens(spec, now, t) for t in spec.types))
+            sg_determined.append(all(plan_tokens(spec, other, t) == plan_tokens(spec, now, t)
+                                     for other in indistinguishable(spec, now) for t in spec.types))
         else:
             expected = next_object(spec, before)
+            control = plan_tokens(spec, before, expected)
             events = [e for k, e in state.events if start <= k <= end and e.label == SCREW]
-            sc.append(bool(events) and events[0].plan.next_object == expected
-                      and events[0].plan.control == plan_tokens(spec, before, expected))
+            sc.append(bool(events) and events[0].plan.next_object == expected and events[0].plan.control == control)
+            sc_determined.append(all(next_object(spec, other) == expected
+                                     and plan_tokens(spec, other, expected) == control
+                                     for other in indistinguishable(spec, before)))
             truth_assembled.add(step.robot[1])
     ad = []
     for window in state.windows:
         labels = [x for x in clip.labels[window.start : window.end] if x != "none"]
         if labels:
             ad.append(window.label == max(set(labels), key=labels.count))
-    result = {"ad": ad, "sg": sg, "sc": sc, "tracking_s": state.tracking_s, "classify_s": state.classify_s,
+    result = {"ad": ad, "sg": sg, "sc": sc, "sg_determined": sg_determined, "sc_determined": sc_determined,
+              "tracking_s": state.tracking_s, "classify_s": state.classify_s,
               "recoveries": [r for _, event in state.events for r in event.recoveries]}
     return {**result, **hands.result(spec.goal(goal))} if hands is not None else result

@@ -92,8 +92,9 @@ def hrc_session(runs: pd.DataFrame) -> Section:
         "out (no part of that type left, position taken, pair not allowed by Table 5.1), so it asked for help; "
         "`placed`: commands it executed whose part rests within "
         f"{amount(runs, 'env.robot.place_tolerance', 'm')} of the position with no collision; `assembled`: "
-        "sessions whose bracket holds exactly the goal at the end. AD / SG / SC as in Table 5.2, on the same "
-        "sessions as `ch5/table_5_2` of the same seed (AD depends on the detector only; SG and SC can differ where "
+        "sessions whose bracket holds exactly the goal at the end. AD / SG / SC as in Table 5.2, on the "
+        f"first {amount(runs, 'protocol.sessions', 'normal sessions')} of `ch5/table_5_2`'s of the same seed "
+        "(AD depends on the detector only; SG and SC can differ where "
         "the cell refused a step, which the planner then never sees); thesis (20 real experiments x 5) in brackets; "
         f"{over_seeds(runs)}. The video is generated in advance, so it shows the "
         "expert's part appearing after each screw whatever the robot did; the cell is what the robot really did.",

@@ -180,6 +180,14 @@ def ambiguous_scenarios(spec: AssembleToOrderSpec) -> list[Scenario]:
     return [s for group in by_pairs.values() if len(group) > 1 for s in group]
 
 
+def indistinguishable(spec: AssembleToOrderSpec, scenario: Scenario) -> list[Scenario]:
+    """The scenarios of every goal whose assembled pairs are ``scenario``'s (itself included): what a planner that
+    observes only the assembly cannot tell apart (every goal before the first placement)."""
+    pairs = assembled_pairs(spec, scenario)
+    same = (Scenario(z, scenario.assembled) for z in range(spec.n_goals))
+    return [s for s in same if assembled_pairs(spec, s) == pairs]
+
+
 class HumanWorker:
     """A simulated human for whole sessions: assembles the goal's positions in a random order (fetch, transport,
     then the assembly action) and now and then screws instead, which hands the next part to the robot."""
