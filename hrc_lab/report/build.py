@@ -105,12 +105,26 @@ def build_sections(
 ) -> list[tuple[str, str, Section]]:
     """(variant, the arguments that re-run it, section) for each variant of the finished runs read (one unless
     ``variant`` is None: then every variant present, default first), each built from its own runs only."""
-    runs = fetch_runs(tracking_uri, experiment, sweep, variant)
+    return sections_from(fetch_runs(tracking_uri, experiment, sweep, variant), table)
+
+
+def sections_from(runs: pd.DataFrame, table: str) -> list[tuple[str, str, Section]]:
+    """:func:`build_sections` for runs already fetched."""
     if runs.empty:
         return []
     return [(name, rerun_arguments(runs[runs["variant"] == name], overrides),
              section_of(runs[runs["variant"] == name], table))
             for name, overrides in variants_of(runs).items()]
+
+
+def moved_headings(runs: pd.DataFrame, sections: list[tuple[str, str, Section]]) -> set[str]:
+    """The headings that the runs a changed default moved to another variant (:mod:`hrc_lab.report.defaults`) had
+    before: a previous report's section under such a heading is these runs' old section, not one to keep."""
+    if not sections or "pinned" not in runs:
+        return set()
+    title = sections[0][2].title.split(ABLATION_MARK)[0]
+    moved = runs.loc[runs["pinned"] != "", "logged_variant_overrides"]
+    return {f"## {title}{ABLATION_MARK}{overrides}" if overrides else f"## {title}" for overrides in set(moved)}
 
 
 def rerun_arguments(runs: pd.DataFrame, overrides: str) -> str:
@@ -181,9 +195,10 @@ def build_topic(topic: str, tracking_uri: str, out_dir: Path, sweep: str | None 
         "",
     ]
     for experiment, table in parts:
-        sections = build_sections(tracking_uri, experiment, table, sweep, variant=None)
+        runs = fetch_runs(tracking_uri, experiment, sweep, variant=None)
+        sections = sections_from(runs, table)
         command = COMMANDS.get(table, experiment)
-        built = {f"## {section.title}" for _, _, section in sections}
+        built = {f"## {section.title}" for _, _, section in sections} | moved_headings(runs, sections)
         kept = [(heading, text) for heading, text in previous.get(table, []) if heading not in built]
         has_default = DEFAULT_VARIANT in {variant for variant, _, _ in sections}
         if not has_default and kept and ABLATION_MARK not in kept[0][0]:

@@ -107,13 +107,15 @@ def table_4_1(runs: pd.DataFrame) -> Section:
 
 
 def _other_conditions(runs: pd.DataFrame) -> list[str]:
-    """For an ablation's runs: the test conditions (:data:`CONDITION_KEYS`, beyond the ablation's own overrides)
+    """For an ablation's runs: the test conditions (:data:`CONDITION_KEYS`, beyond the overrides it was launched with;
+    a changed default's pinned in its title, :mod:`hrc_lab.report.defaults`, is named here too)
     whose logged values differ from the default section's runs of the same cells, and the position spans both
     covered, so that no one compares rows run at other ranges; [] when they agree or the store has no default runs."""
     default = default_runs_of(runs)
     if default.empty:
         return []
-    own = [item.split("=", 1)[0] + "." for item in " ".join(runs["variant_overrides"].astype(str)).split()]
+    launched = runs["logged_variant_overrides"] if "logged_variant_overrides" in runs else runs["variant_overrides"]
+    own = [item.split("=", 1)[0] + "." for item in " ".join(launched.astype(str)).split()]  # not the pinned ones
     logged = [k for k in CONDITION_KEYS if not (k + ".").startswith(tuple(own))
               and NOT_LOGGED not in (setting(runs, k), setting(default, k))]
     differ = [k for k in logged if setting(runs, k) != setting(default, k)]

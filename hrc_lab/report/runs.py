@@ -4,7 +4,9 @@ Runs are selected by *variant*: a job whose only overrides are the experiment fi
 or Hydra settings) is variant ``default``; any other override (e.g. ``protocol.demos=60``) makes an ablation
 variant, tagged ``variant`` = ``v`` + 8 hex digits and ``variant_overrides`` = the extra overrides. Reports read
 each variant apart, so an ablation never replaces a default run. Runs logged before the tag existed are
-``default``. Only FINISHED runs are ever read (never RUNNING, KILLED or FAILED ones).
+``default``. A run whose logged config today's defaults no longer give joins the variant of its overrides plus the
+changed settings (:mod:`hrc_lab.report.defaults`). Only FINISHED runs are ever read (never RUNNING, KILLED or FAILED
+ones).
 """
 
 from __future__ import annotations
@@ -12,11 +14,11 @@ from __future__ import annotations
 import pandas as pd
 from mlflow.tracking import MlflowClient
 
+from hrc_lab.report.defaults import PARAM_PREFIX, pin_changed_defaults
 from hrc_lab.tracking import resolve_tracking_uri
 
 KEY_TAGS = ("scenario", "cell", "method", "seed")  # scenario: the cell plus the robot-cell case
 DEFAULT_VARIANT = "default"
-PARAM_PREFIX = "param."  # params (the resolved config, dotted keys) are columns "param.<key>"
 NOT_LOGGED = "not logged"
 
 
@@ -60,7 +62,7 @@ def fetch_runs(
     """Finished runs of ``experiment`` of one ``variant`` (``None``: every variant), optionally of one sweep, the
     newest per (scenario, cell, method, seed) within its variant. Columns: ``run_id``, ``start_time``, the tags
     (``sweep`` and ``variant`` always), one column per final metric and ``param.<key>`` per logged param."""
-    frame = _finished_runs(tracking_uri, experiment, sweep)
+    frame = pin_changed_defaults(_finished_runs(tracking_uri, experiment, sweep))
     if frame.empty:
         return frame
     if variant is not None:

@@ -1,0 +1,136 @@
+"""Runs whose configuration today's command no longer composes: a default changed after they ran.
+
+A report section names the command that re-runs it. When a default changes (e.g. Table 3.1's ``motion.steps``
+2000 -> 6000), the runs made before the change still sit in the store under the same variant, and that command
+would now compute something else. Each run's logged config (its ``param.<key>`` columns) is therefore compared with
+the config its own overrides compose from today's ``conf/``; every setting that differs is *pinned*: added to the
+run's variant overrides, as if it had been given on the command line. Such runs read as their own ablation section
+("... — ablation: motion.steps=2000"), whose Reproduce line computes them again, and they share that section with
+runs that are given the same override explicitly. Settings of the neutral groups (where a run logs and writes) are
+never pinned; a setting the run did not log (a key added since) is not compared; a run whose overrides no longer
+compose keeps its variant.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+
+import pandas as pd
+from omegaconf import OmegaConf, open_dict
+
+from hrc_lab.run_naming import CONF_DIR, NEUTRAL_KEYS, variant_of
+from hrc_lab.tracking import flatten
+
+PARAM_PREFIX = "param."  # params (the resolved config, dotted keys) are columns "param.<key>"
+MAX_PARAM = 6000  # MLflow keeps the first 6000 characters of a param (hrc_lab.tracking.RunTracker.log_config)
+_NEUTRAL_REFERENCE = re.compile(r"\$\{(" + "|".join(NEUTRAL_KEYS) + r")\.")
+
+
+@functools.cache
+def _composed_groups(overrides: tuple[str, ...]):
+    """The config the group-choosing ``overrides`` compose from today's ``conf/`` (no ``hydra`` node), or None."""
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+    from hydra._internal.utils import create_config_search_path
+    from hydra.core.plugins import Plugins
+    from hydra.types import RunMode
+
+    from hrc_lab.config import register_schemas
+
+    register_schemas()
+    Plugins.instance()
+    loader = ConfigLoaderImpl(config_search_path=create_config_search_path(str(CONF_DIR)))
+    try:
+        cfg = loader.load_configuration("config", list(overrides), RunMode.RUN)
+    except Exception:  # an option or key that no longer exists
+        return None
+    with open_dict(cfg):
+        del cfg["hydra"]
+    return cfg
+
+
+def _chooses_a_config(override: str) -> bool:
+    """A group choice (``env=...``, ``hydra/launcher=...``) or an addition / deletion, as opposed to a value."""
+    key = override.split("=", 1)[0]
+    return key.startswith(("+", "~")) or "/" in key or ("." not in key and (CONF_DIR / key).is_dir())
+
+
+def composed_today(overrides: tuple[str, ...]) -> dict[str, str] | None:
+    """The flattened, resolved config that ``overrides`` (a job's task overrides) compose from today's ``conf/``,
+    without the neutral groups' settings and those interpolated from them; None when they no longer compose. The
+    group choices are composed once per set (cached); values are then set on a copy."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    base = _composed_groups(tuple(o for o in overrides if _chooses_a_config(o)))
+    if base is None:
+        return None
+    cfg = base.copy()
+    try:
+        for override in OverridesParser.create().parse_overrides([o for o in overrides if not _chooses_a_config(o)]):
+            OmegaConf.update(cfg, override.key_or_group, override.value(), merge=True)
+        resolved = flatten(OmegaConf.to_container(cfg, resolve=True))
+    except Exception:  # a key that no longer exists, a value its schema no longer accepts, an interpolation
+        return None
+    raw = flatten(OmegaConf.to_container(cfg, resolve=False))
+    return {key: value for key, value in resolved.items()
+            if key.split(".")[0] not in NEUTRAL_KEYS and not _NEUTRAL_REFERENCE.search(raw.get(key, ""))}
+
+
+def _override_value(value: str) -> str:
+    """A logged param as a Hydra override value: None as null, text with spaces or commas quoted."""
+    if value == "None":
+        return "null"
+    return f"'{value}'" if re.search(r"[\s,\[\]{}()=:']", value) else value
+
+
+def pinned_settings(row: pd.Series) -> list[str]:
+    """The overrides (``key=value``) that give ``row``'s run the config it logged where today's defaults differ;
+    a changed list element pins its whole list. Empty for a run without its ``overrides`` tag."""
+    overrides = row.get("overrides")
+    if not isinstance(overrides, str) or "--" in str(row.get("variant_overrides", "")):
+        return []  # no overrides logged, or the user's own config files composed (not in today's conf/)
+    items = overrides.split()
+    if not any(item.startswith("experiment=") for item in items) and isinstance(row.get("experiment"), str):
+        items.insert(0, f"experiment={row['experiment']}")  # the experiment file the run's tag names
+    today = composed_today(tuple(items))
+    if today is None:
+        return []
+    logged = {key[len(PARAM_PREFIX):]: value for key, value in row.items()
+              if key.startswith(PARAM_PREFIX) and isinstance(value, str)}
+    changed = sorted(key for key, value in today.items() if key in logged and logged[key] != value[:MAX_PARAM])
+    pins: dict[str, str] = {}
+    for key in changed:
+        parts = key.split(".")
+        index = next((i for i, part in enumerate(parts) if part.isdigit()), None)
+        if index is None:
+            pins[key] = _override_value(logged[key])
+            continue
+        parent = ".".join(parts[:index])  # a list: pin all of it, as logged
+        items = sorted((int(k[len(parent) + 1:].split(".")[0]), v) for k, v in logged.items()
+                       if k.startswith(parent + ".") and k[len(parent) + 1:].split(".")[0].isdigit()
+                       and "." not in k[len(parent) + 1:])
+        pins[parent] = "[" + ",".join(_override_value(v) for _, v in items) + "]"
+    return [f"{key}={value}" for key, value in pins.items()]
+
+
+def pin_changed_defaults(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` (one row per run, :func:`hrc_lab.report.runs.fetch_runs`' columns) with each run whose logged
+    config today's command would not give moved to the variant of its overrides plus the pinned settings
+    (``variant``, ``variant_overrides``); ``pinned``: those settings ("" for a run today's command repeats),
+    ``logged_variant_overrides``: the variant's overrides as the run logged them."""
+    if frame.empty:
+        return frame
+    frame = frame.copy()
+    pinned = [pinned_settings(row) for _, row in frame.iterrows()]
+    frame["pinned"] = [" ".join(pins) for pins in pinned]
+    frame["logged_variant_overrides"] = frame["variant_overrides"]
+    for i, pins in enumerate(pinned):
+        if not pins:
+            continue
+        own = str(frame.at[frame.index[i], "variant_overrides"]).split()
+        keys = {item.split("=", 1)[0] for item in own}
+        extra = own + [pin for pin in pins if pin.split("=", 1)[0] not in keys]
+        variant, shown = variant_of(extra, sweep_keys=[])
+        frame.at[frame.index[i], "variant"] = variant
+        frame.at[frame.index[i], "variant_overrides"] = " ".join(shown)
+    return frame

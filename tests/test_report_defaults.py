@@ -1,0 +1,61 @@
+"""Runs made under an older default read as their own section (hrc_lab.report.defaults)."""
+
+import pandas as pd
+
+from hrc_lab.report.build import ABLATION_MARK, moved_headings
+from hrc_lab.report.defaults import PARAM_PREFIX, composed_today, pin_changed_defaults, pinned_settings
+from hrc_lab.report.sections import Section
+from hrc_lab.run_naming import variant_of
+
+JOB = "experiment=ch3/table_3_1 motion=tc_vi env=error_correction_one_object_case1 seed=1"
+
+
+def logged_run(overrides: str = JOB, variant: str = "default", variant_overrides: str = "", **changed) -> dict:
+    """A run as fetch_runs gives it: today's config as its params, with ``changed`` (dotted keys) logged instead."""
+    params = dict(composed_today(tuple(overrides.split())))
+    params.update(changed)
+    return {"overrides": overrides, "variant": variant, "variant_overrides": variant_overrides,
+            "param.logger.tracking_uri": "sqlite:////elsewhere/mlflow.db",  # neutral: never pinned
+            **{f"{PARAM_PREFIX}{key}": value for key, value in params.items()}}
+
+
+def test_a_run_that_today_s_command_repeats_pins_nothing():
+    today = composed_today(tuple(JOB.split()))
+    assert today["motion.steps"] == "6000" and today["seed"] == "1" and "logger.tracking_uri" not in today
+    assert pinned_settings(pd.Series(logged_run())) == []
+
+
+def test_changed_defaults_are_pinned_as_overrides():
+    assert pinned_settings(pd.Series(logged_run(**{"motion.steps": "2000"}))) == ["motion.steps=2000"]
+    run = logged_run(**{"motion.ndp.path_steps.0": "9", "protocol.placement_noise": "None"})
+    today = composed_today(tuple(JOB.split()))
+    steps = ",".join(["9", today["motion.ndp.path_steps.1"], today["motion.ndp.path_steps.2"]])
+    assert pinned_settings(pd.Series(run)) == [f"motion.ndp.path_steps=[{steps}]", "protocol.placement_noise=null"]
+
+
+def test_runs_whose_overrides_no_longer_compose_or_were_not_logged_keep_their_variant():
+    gone = logged_run(**{"motion.steps": "2000"}) | {"overrides": JOB + " motion=gone"}
+    assert pinned_settings(pd.Series(gone)) == []
+    assert pinned_settings(pd.Series({"variant": "default", "param.motion.steps": "2000"})) == []
+    assert composed_today(("experiment=ch3/table_3_1", "motion.no_such_key=1")) is None
+
+
+def test_pinned_runs_move_to_the_variant_their_settings_name():
+    ablation, _ = variant_of(["protocol.dagger_rounds=2"], [])
+    frame = pd.DataFrame([
+        logged_run(),
+        logged_run(**{"motion.steps": "2000"}),
+        logged_run(JOB + " protocol.dagger_rounds=2", ablation, "protocol.dagger_rounds=2", **{"motion.steps": "2000"}),
+    ])
+    frame.loc[2, "param.protocol.dagger_rounds"] = "2"
+    pinned = pin_changed_defaults(frame)
+    assert list(pinned["pinned"]) == ["", "motion.steps=2000", "motion.steps=2000"]
+    assert pinned.loc[0, "variant"] == "default"
+    # the same variant as a job given the override on the command line
+    assert pinned.loc[1, "variant"] == variant_of(["motion.steps=2000"], [])[0]
+    assert pinned.loc[1, "variant_overrides"] == "motion.steps=2000"
+    assert pinned.loc[2, "variant_overrides"] == "motion.steps=2000 protocol.dagger_rounds=2"
+    assert list(pinned["logged_variant_overrides"]) == ["", "", "protocol.dagger_rounds=2"]
+    # the previous report's sections of the moved runs are not kept beside their new ones
+    sections = [("default", "", Section("Table 3.1", "", pd.DataFrame()))]
+    assert moved_headings(pinned, sections) == {"## Table 3.1", f"## Table 3.1{ABLATION_MARK}protocol.dagger_rounds=2"}
