@@ -59,3 +59,11 @@ def test_pinned_runs_move_to_the_variant_their_settings_name():
     # the previous report's sections of the moved runs are not kept beside their new ones
     sections = [("default", "", Section("Table 3.1", "", pd.DataFrame()))]
     assert moved_headings(pinned, sections) == {"## Table 3.1", f"## Table 3.1{ABLATION_MARK}protocol.dagger_rounds=2"}
+
+
+def test_a_protocol_key_read_only_by_other_methods_is_not_pinned():
+    """Table 4.3's motion_demos changes ours' runs, not DRL's (the schema field's ``read_by``)."""
+    job = "experiment=ch4/table_4_3 env=package_to_order_3of5 seed=0"
+    for method, pinned in (("drl", []), ("ours", ["protocol.motion_demos=fixed"])):
+        run = logged_run(f"{job} tamp={method}", **{"protocol.motion_demos": "fixed"}) | {"method": method}
+        assert pinned_settings(pd.Series(run)) == pinned

@@ -354,15 +354,17 @@ class Table43Protocol:
     tolerance: float = 0.008  # m: a sub-goal counts as reached within this distance
     # thesis: "trained for 5000 iterations", read as the HER reference implementation's cycles (100 epochs); the
     # experiment file sets what fits its sweep's time (conf/experiment/ch4/table_4_3.yaml)
-    drl_iterations: int = 5000
-    drl_eval_episodes: int = 10
+    # (``read_by``: the systems whose runs a key changes; a report never sets another system's runs apart for it,
+    # hrc_lab.report.defaults)
+    drl_iterations: int = field(default=5000, metadata={"read_by": ("drl",)})
+    drl_eval_episodes: int = field(default=10, metadata={"read_by": ("drl",)})
     checkpoint_every: int = 5
     # scripted-expert episodes in the DRL agent's replay buffer before it trains ("trained using demonstrations from
     # both cases", Table 4.3; the thesis gives no count: 25 per case, as Fig. 3.13 gives each subtask 50); 0: none
-    drl_demos: int = 50
+    drl_demos: int = field(default=50, metadata={"read_by": ("drl",)})
     # the goal configurations of ours' robot demonstrations: "fixed", one packing arrangement per selection (the k-th
     # lowest product into slot k, as Table 4.2 after 4.4.2.1), or "all" (every permutation)
-    motion_demos: str = "fixed"
+    motion_demos: str = field(default="fixed", metadata={"read_by": ("ours", "ours_hrc")})
     video_cells: list[str] = field(default_factory=lambda: ["3of5"])
     camera: str = CELL_CAMERA
     video_width: int = 320

@@ -7,8 +7,8 @@ the config its own overrides compose from today's ``conf/``; every setting that 
 run's variant overrides, as if it had been given on the command line. Such runs read as their own ablation section
 ("... — ablation: motion.steps=2000"), whose Reproduce line computes them again, and they share that section with
 runs that are given the same override explicitly. Settings of the neutral groups (where a run logs and writes) are
-never pinned; a setting the run did not log (a key added since) is not compared; a run whose overrides no longer
-compose keeps its variant.
+never pinned, nor a protocol setting its schema marks as read only by other methods (``read_by``); a setting the run
+did not log (a key added since) is not compared; a run whose overrides no longer compose keeps its variant.
 """
 
 from __future__ import annotations
@@ -76,6 +76,21 @@ def composed_today(overrides: tuple[str, ...]) -> dict[str, str] | None:
             if key.split(".")[0] not in NEUTRAL_KEYS and not _NEUTRAL_REFERENCE.search(raw.get(key, ""))}
 
 
+def read_by_run(key: str, protocol: str | None, method: str | None) -> bool:
+    """False for a protocol key its schema field marks as read only by other methods (``metadata={"read_by":
+    (...)}``, e.g. Table 4.3's ``drl_demos``, which only DRL's runs read): its change does not change the run."""
+    from dataclasses import fields
+
+    from hrc_lab.experiments import PROTOCOLS
+
+    if not key.startswith("protocol.") or protocol not in PROTOCOLS.names():
+        return True
+    name = key.split(".")[1]
+    field = next((f for f in fields(PROTOCOLS.get(protocol).schema) if f.name == name), None)
+    read_by = field.metadata.get("read_by") if field is not None else None
+    return read_by is None or method in read_by
+
+
 def _override_value(value: str) -> str:
     """A logged param as a Hydra override value: None as null, text with spaces or commas quoted."""
     if value == "None":
@@ -97,7 +112,8 @@ def pinned_settings(row: pd.Series) -> list[str]:
         return []
     logged = {key[len(PARAM_PREFIX):]: value for key, value in row.items()
               if key.startswith(PARAM_PREFIX) and isinstance(value, str)}
-    changed = sorted(key for key, value in today.items() if key in logged and logged[key] != value[:MAX_PARAM])
+    changed = sorted(key for key, value in today.items() if key in logged and logged[key] != value[:MAX_PARAM]
+                     and read_by_run(key, logged.get("protocol.name"), row.get("method")))
     pins: dict[str, str] = {}
     for key in changed:
         parts = key.split(".")
