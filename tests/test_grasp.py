@@ -13,7 +13,7 @@ from torch_geometric.loader import DataLoader
 from hrc_lab.config import validate_config
 from hrc_lab.env.clutter.rule import solution_types
 from hrc_lab.env.clutter.spec import PART_TYPES, ClutterObject, ClutterScene, ClutterSpec
-from hrc_lab.experiments.ch6_grasp import object_accuracy
+from hrc_lab.experiments.ch6_grasp import object_accuracy, random_request, training_requests
 from hrc_lab.grasp import GRASPS
 from hrc_lab.grasp.configs import DetectorConfig, GraspSolverConfig
 from hrc_lab.grasp.diagnostics import failure_cause, scene_geometry
@@ -55,6 +55,16 @@ def test_scene_graph_node_features():
     assert graph.x[:, 5:].tolist() == [[0, 1, 0, 0], [0, 0, 1, 1]]  # one-hot label, then the request flag g_i
     assert graph.edge_index.shape == (2, 2)
     assert graph.edge_weight.tolist() == [1.0, 1.0]
+
+
+def test_training_scenes_carry_one_random_request_or_k_distinct_ones():
+    types = ["a", "b", "a", "c"]
+    assert training_requests(np.random.default_rng(3), types, 1) == [random_request(np.random.default_rng(3), types)]
+    four = training_requests(np.random.default_rng(3), types, 4)
+    assert len(four) == 4 and len({frozenset(r) for r in four}) == 4 and all(r <= {"a", "b", "c"} for r in four)
+    every = training_requests(np.random.default_rng(3), types, 20)  # 7 non-empty sets of three types
+    assert sorted(map(sorted, every)) == sorted(map(sorted, [{"a"}, {"b"}, {"c"}, {"a", "b"}, {"a", "c"},
+                                                             {"b", "c"}, {"a", "b", "c"}]))
 
 
 def test_vocabulary_round_trip():

@@ -10,6 +10,7 @@ reads the same images through the same detector; ``seed`` fixes the requests and
 
 from __future__ import annotations
 
+import itertools
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -65,6 +66,16 @@ def random_request(rng: np.random.Generator, types: list[str], k: int | None = N
     if k > len(present):
         return None
     return set(rng.choice(present, size=k, replace=False).tolist())
+
+
+def training_requests(rng: np.random.Generator, types: list[str], k: int) -> list[set[str] | None]:
+    """The requests one training scene carries: one :func:`random_request` when ``k`` is 1, else ``k`` distinct
+    non-empty sets of its part types in random order (all of them when there are fewer)."""
+    if k == 1:
+        return [random_request(rng, types)]
+    present = sorted(set(types))
+    subsets = [set(c) for size in range(1, len(present) + 1) for c in itertools.combinations(present, size)]
+    return [subsets[i] for i in rng.permutation(len(subsets))[:k]]
 
 
 def part_outcomes(solver: GraspSolver, nodes: list[SceneNodes], requests: list[set[str] | None]) -> pd.DataFrame:
@@ -146,10 +157,10 @@ def prepare(ctx: RunContext, train: list[ClutterScene] | None = None,
     solver = GRASPS.build(cfg, spec=spec, classes=classes, seed=ctx.seed)
     train_nodes = observe(spec, train, detector, cfg, solver, train_blockers)
     rng = ctx.rng(61)
-    requests = [random_request(rng, n.labels or n.scene.types) for n in train_nodes]
-    graphs = [solver.training_graph(n, r) for n, r in zip(train_nodes, requests) if r]
+    requests = [training_requests(rng, n.labels or n.scene.types, protocol.train_requests) for n in train_nodes]
+    graphs = [solver.training_graph(n, r) for n, drawn in zip(train_nodes, requests) for r in drawn if r]
     solver.fit(graphs, ctx.trainer(stage))
-    train = object_accuracy(part_outcomes(solver, train_nodes, requests))
+    train = object_accuracy(part_outcomes(solver, train_nodes, [drawn[0] for drawn in requests]))
     train_metrics = {"train_grasp_acc": train["fit_acc"], "train_part_grasp_acc": train["grasp_acc"],
                      "train_detected": train["detected"], "prepare_s": time.perf_counter() - start}
     return spec, protocol, detector, solver, train_metrics

@@ -578,12 +578,18 @@ class ClutterScenesProtocol:
     data_seed: int = 0
     train_images: int = 427
     test_images: int = 50
+    # requests per training scene, each a training graph of the solver (its labelled nodes are the requested parts):
+    # 1, a random request (the thesis gives no other); k > 1, k distinct requests, all of them when the scene's part
+    # types allow fewer (hrc_lab.experiments.ch6_grasp.training_requests)
+    train_requests: int = 1
 
     def __post_init__(self) -> None:
         if self.data_seed < 0:
             raise ValueError(f"protocol.data_seed must be >= 0, got {self.data_seed}")
         if self.train_images < 1 or self.test_images < 1:
             raise ValueError("protocol.train_images and protocol.test_images must be >= 1")
+        if self.train_requests < 1:
+            raise ValueError(f"protocol.train_requests must be >= 1, got {self.train_requests}")
 
     def check(self, validated) -> None:
         """The detector reads the rendered images unresized: ``grasp.detector.image_size`` = ``env.image_size``."""
@@ -594,8 +600,8 @@ class ClutterScenesProtocol:
 
 @dataclass
 class Table61Protocol(ClutterScenesProtocol):
-    """Object accuracy (6.4.1): each training scene carries one random request of 1-3 part types; the test scenes
-    are scored with new random requests of each size in ``request_sizes``."""
+    """Object accuracy (6.4.1): each training scene carries ``train_requests`` random requests of 1-3 part types (one
+    by default); the test scenes are scored with new random requests of each size in ``request_sizes``."""
 
     request_sizes: list[int] = field(default_factory=lambda: [1, 2, 3])
 
