@@ -67,3 +67,17 @@ def test_a_protocol_key_read_only_by_other_methods_is_not_pinned():
     for method, pinned in (("drl", []), ("ours", ["protocol.motion_demos=fixed"])):
         run = logged_run(f"{job} tamp={method}", **{"protocol.motion_demos": "fixed"}) | {"method": method}
         assert pinned_settings(pd.Series(run)) == pinned
+
+
+def test_an_override_that_today_s_defaults_give_leaves_the_variant():
+    """Runs given motion.steps=6000 before 6000 became the default are default runs today."""
+    redundant, _ = variant_of(["motion.steps=6000"], [])
+    frame = pd.DataFrame([logged_run(JOB + " motion.steps=6000", redundant, "motion.steps=6000"),
+                          logged_run(JOB + " motion.steps=6000 protocol.dagger_rounds=2", "v1",
+                                     "motion.steps=6000 protocol.dagger_rounds=2")])
+    frame.loc[1, "param.protocol.dagger_rounds"] = "2"
+    moved = pin_changed_defaults(frame)
+    assert list(moved["variant"]) == ["default", variant_of(["protocol.dagger_rounds=2"], [])[0]]
+    assert list(moved["variant_overrides"]) == ["", "protocol.dagger_rounds=2"]
+    sections = [("default", "", Section("Table 3.1", "", pd.DataFrame()))]
+    assert f"## Table 3.1{ABLATION_MARK}motion.steps=6000" in moved_headings(moved, sections)

@@ -9,7 +9,15 @@ import matplotlib.pyplot as plt
 import pandas as pd
 from mlflow.tracking import MlflowClient
 
-from hrc_lab.report.runs import DEFAULT_VARIANT, fetch_runs, number_first, sweeps_line, variants_of
+from hrc_lab.report.runs import (
+    DEFAULT_VARIANT,
+    fetch_runs,
+    finished_runs,
+    newest_runs,
+    number_first,
+    sweeps_line,
+    variants_of,
+)
 from hrc_lab.report.sections import SECTIONS, TOPICS, Section, load_sections
 from hrc_lab.run_naming import NEUTRAL_KEYS
 from hrc_lab.tracking import resolve_tracking_uri
@@ -118,12 +126,13 @@ def sections_from(runs: pd.DataFrame, table: str) -> list[tuple[str, str, Sectio
 
 
 def moved_headings(runs: pd.DataFrame, sections: list[tuple[str, str, Section]]) -> set[str]:
-    """The headings that the runs a changed default moved to another variant (:mod:`hrc_lab.report.defaults`) had
-    before: a previous report's section under such a heading is these runs' old section, not one to keep."""
-    if not sections or "pinned" not in runs:
+    """The headings that ``runs`` (:func:`~hrc_lab.report.runs.finished_runs`, older ones included) had before
+    :mod:`hrc_lab.report.defaults` moved them to another variant: a previous report's section under such a heading
+    is these runs' old section (e.g. one whose overrides are today's defaults), not one to keep."""
+    if not sections or "logged_variant_overrides" not in runs:
         return set()
     title = sections[0][2].title.split(ABLATION_MARK)[0]
-    moved = runs.loc[runs["pinned"] != "", "logged_variant_overrides"]
+    moved = runs.loc[runs["variant_overrides"] != runs["logged_variant_overrides"], "logged_variant_overrides"]
     return {f"## {title}{ABLATION_MARK}{overrides}" if overrides else f"## {title}" for overrides in set(moved)}
 
 
@@ -195,10 +204,10 @@ def build_topic(topic: str, tracking_uri: str, out_dir: Path, sweep: str | None 
         "",
     ]
     for experiment, table in parts:
-        runs = fetch_runs(tracking_uri, experiment, sweep, variant=None)
-        sections = sections_from(runs, table)
+        every = finished_runs(tracking_uri, experiment, sweep)
+        sections = sections_from(newest_runs(every, variant=None), table)
         command = COMMANDS.get(table, experiment)
-        built = {f"## {section.title}" for _, _, section in sections} | moved_headings(runs, sections)
+        built = {f"## {section.title}" for _, _, section in sections} | moved_headings(every, sections)
         kept = [(heading, text) for heading, text in previous.get(table, []) if heading not in built]
         has_default = DEFAULT_VARIANT in {variant for variant, _, _ in sections}
         if not has_default and kept and ABLATION_MARK not in kept[0][0]:

@@ -8,7 +8,9 @@ run's variant overrides, as if it had been given on the command line. Such runs 
 ("... — ablation: motion.steps=2000"), whose Reproduce line computes them again, and they share that section with
 runs that are given the same override explicitly. Settings of the neutral groups (where a run logs and writes) are
 never pinned, nor a protocol setting its schema marks as read only by other methods (``read_by``); a setting the run
-did not log (a key added since) is not compared; a run whose overrides no longer compose keeps its variant.
+did not log (a key added since) is not compared; a run whose overrides no longer compose keeps its variant. The other
+way round, an override that today's defaults already give (``motion.steps=6000`` once 6000 is the default) leaves
+the run's variant: such a run is what today's command computes.
 """
 
 from __future__ import annotations
@@ -98,16 +100,35 @@ def _override_value(value: str) -> str:
     return f"'{value}'" if re.search(r"[\s,\[\]{}()=:']", value) else value
 
 
-def pinned_settings(row: pd.Series) -> list[str]:
-    """The overrides (``key=value``) that give ``row``'s run the config it logged where today's defaults differ;
-    a changed list element pins its whole list. Empty for a run without its ``overrides`` tag."""
+def job_overrides(row: pd.Series) -> list[str] | None:
+    """The overrides ``row``'s job was launched with, its experiment file named; None when they are not logged or
+    the user's own config files were composed (not in today's ``conf/``)."""
     overrides = row.get("overrides")
     if not isinstance(overrides, str) or "--" in str(row.get("variant_overrides", "")):
-        return []  # no overrides logged, or the user's own config files composed (not in today's conf/)
+        return None
     items = overrides.split()
     if not any(item.startswith("experiment=") for item in items) and isinstance(row.get("experiment"), str):
         items.insert(0, f"experiment={row['experiment']}")  # the experiment file the run's tag names
-    today = composed_today(tuple(items))
+    return items
+
+
+def redundant_overrides(row: pd.Series) -> list[str]:
+    """The run's variant overrides that today's defaults already give (e.g. ``motion.steps=6000`` once 6000 is the
+    default): without one of them its overrides compose the same config."""
+    items = job_overrides(row)
+    today = composed_today(tuple(items)) if items is not None else None
+    if today is None:
+        return []
+    own = str(row.get("variant_overrides", "")).split()
+    return [item for item in own if item in items
+            and composed_today(tuple(other for other in items if other != item)) == today]
+
+
+def pinned_settings(row: pd.Series) -> list[str]:
+    """The overrides (``key=value``) that give ``row``'s run the config it logged where today's defaults differ;
+    a changed list element pins its whole list. Empty for a run without its ``overrides`` tag."""
+    items = job_overrides(row)
+    today = composed_today(tuple(items)) if items is not None else None
     if today is None:
         return []
     logged = {key[len(PARAM_PREFIX):]: value for key, value in row.items()
@@ -131,19 +152,21 @@ def pinned_settings(row: pd.Series) -> list[str]:
 
 def pin_changed_defaults(frame: pd.DataFrame) -> pd.DataFrame:
     """``frame`` (one row per run, :func:`hrc_lab.report.runs.fetch_runs`' columns) with each run whose logged
-    config today's command would not give moved to the variant of its overrides plus the pinned settings
-    (``variant``, ``variant_overrides``); ``pinned``: those settings ("" for a run today's command repeats),
+    config today's command would not give moved to the variant of its overrides plus the pinned settings, and each
+    run's overrides that today's defaults already give left out of its variant (``variant``, ``variant_overrides``;
+    a run whose only overrides were such is a default run); ``pinned``: the pinned settings,
     ``logged_variant_overrides``: the variant's overrides as the run logged them."""
     if frame.empty:
         return frame
     frame = frame.copy()
     pinned = [pinned_settings(row) for _, row in frame.iterrows()]
+    redundant = [redundant_overrides(row) for _, row in frame.iterrows()]
     frame["pinned"] = [" ".join(pins) for pins in pinned]
     frame["logged_variant_overrides"] = frame["variant_overrides"]
-    for i, pins in enumerate(pinned):
-        if not pins:
+    for i, (pins, same) in enumerate(zip(pinned, redundant, strict=True)):
+        if not pins and not same:
             continue
-        own = str(frame.at[frame.index[i], "variant_overrides"]).split()
+        own = [item for item in str(frame.at[frame.index[i], "variant_overrides"]).split() if item not in same]
         keys = {item.split("=", 1)[0] for item in own}
         extra = own + [pin for pin in pins if pin.split("=", 1)[0] not in keys]
         variant, shown = variant_of(extra, sweep_keys=[])

@@ -62,7 +62,18 @@ def fetch_runs(
     """Finished runs of ``experiment`` of one ``variant`` (``None``: every variant), optionally of one sweep, the
     newest per (scenario, cell, method, seed) within its variant. Columns: ``run_id``, ``start_time``, the tags
     (``sweep`` and ``variant`` always), one column per final metric and ``param.<key>`` per logged param."""
-    frame = pin_changed_defaults(_finished_runs(tracking_uri, experiment, sweep))
+    return newest_runs(finished_runs(tracking_uri, experiment, sweep), variant)
+
+
+def finished_runs(tracking_uri: str, experiment: str, sweep: str | None = None) -> pd.DataFrame:
+    """Every finished job run of ``experiment`` (optionally of one sweep), newest first, in the variant today's
+    defaults give it (:func:`hrc_lab.report.defaults.pin_changed_defaults`)."""
+    return pin_changed_defaults(_finished_runs(tracking_uri, experiment, sweep))
+
+
+def newest_runs(frame: pd.DataFrame, variant: str | None = DEFAULT_VARIANT) -> pd.DataFrame:
+    """Of :func:`finished_runs`' ``frame``: the runs of ``variant`` (None: every variant), the newest per (scenario,
+    cell, method, seed) within its variant."""
     if frame.empty:
         return frame
     if variant is not None:
