@@ -57,10 +57,11 @@ def _chooses_a_config(override: str) -> bool:
     return key.startswith(("+", "~")) or "/" in key or ("." not in key and (CONF_DIR / key).is_dir())
 
 
+@functools.cache
 def composed_today(overrides: tuple[str, ...]) -> dict[str, str] | None:
     """The flattened, resolved config that ``overrides`` (a job's task overrides) compose from today's ``conf/``,
     without the neutral groups' settings and those interpolated from them; None when they no longer compose. The
-    group choices are composed once per set (cached); values are then set on a copy."""
+    group choices are composed once per set, values then set on a copy (both cached: treat the result as read-only)."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     base = _composed_groups(tuple(o for o in overrides if _chooses_a_config(o)))
