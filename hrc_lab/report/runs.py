@@ -5,8 +5,8 @@ or Hydra settings) is variant ``default``; any other override (e.g. ``protocol.d
 variant, tagged ``variant`` = ``v`` + 8 hex digits and ``variant_overrides`` = the extra overrides. Reports read
 each variant apart, so an ablation never replaces a default run. Runs logged before the tag existed are
 ``default``. A run whose logged config today's defaults no longer give joins the variant of its overrides plus the
-changed settings (:mod:`hrc_lab.report.defaults`). Only FINISHED runs are ever read (never RUNNING, KILLED or FAILED
-ones).
+changed settings, and an override that today's defaults already give leaves its variant
+(:mod:`hrc_lab.report.defaults`). Only FINISHED runs are ever read (never RUNNING, KILLED or FAILED ones).
 """
 
 from __future__ import annotations
