@@ -172,20 +172,17 @@ def plan_text(tokens: list[str]) -> str:
     return ", ".join(tokens)
 
 
-def ambiguous_scenarios(spec: AssembleToOrderSpec) -> list[Scenario]:
-    """Scenarios whose assembled pairs are the same as another goal's scenario: no planner can tell them apart."""
-    by_pairs: dict[tuple, list[Scenario]] = {}
-    for scenario in scenarios(spec):
-        by_pairs.setdefault(tuple(assembled_pairs(spec, scenario)), []).append(scenario)
-    return [s for group in by_pairs.values() if len(group) > 1 for s in group]
-
-
 def indistinguishable(spec: AssembleToOrderSpec, scenario: Scenario) -> list[Scenario]:
     """The scenarios of every goal whose assembled pairs are ``scenario``'s (itself included): what a planner that
     observes only the assembly cannot tell apart (every goal before the first placement)."""
     pairs = assembled_pairs(spec, scenario)
     same = (Scenario(z, scenario.assembled) for z in range(spec.n_goals))
     return [s for s in same if assembled_pairs(spec, s) == pairs]
+
+
+def ambiguous_scenarios(spec: AssembleToOrderSpec) -> list[Scenario]:
+    """Scenarios whose assembled pairs are the same as another goal's scenario: no planner can tell them apart."""
+    return [s for s in scenarios(spec) if len(indistinguishable(spec, s)) > 1]
 
 
 class HumanWorker:
