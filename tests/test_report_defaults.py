@@ -81,3 +81,11 @@ def test_an_override_that_today_s_defaults_give_leaves_the_variant():
     assert list(moved["variant_overrides"]) == ["", "protocol.dagger_rounds=2"]
     sections = [("default", "", Section("Table 3.1", "", pd.DataFrame()))]
     assert f"## Table 3.1{ABLATION_MARK}motion.steps=6000" in moved_headings(moved, sections)
+
+
+def test_a_changed_nested_list_is_pinned_whole():
+    from hrc_lab.report.defaults import _list_override
+
+    logged = {"grasp.anchors.0.0": "24", "grasp.anchors.0.1": "40", "grasp.anchors.1.0": "56",
+              "grasp.anchors.1.1": "80", "grasp.steps": "3000"}
+    assert _list_override(logged, "grasp.anchors") == "[[24,40],[56,80]]"

@@ -125,6 +125,14 @@ def redundant_overrides(row: pd.Series) -> list[str]:
             and composed_today(tuple(other for other in items if other != item)) == today]
 
 
+def _list_override(logged: dict[str, str], parent: str) -> str:
+    """The list ``parent`` as its flattened params ``parent.0``, ``parent.1.0``, ... logged it: "[a,[b,c]]"."""
+    indices = sorted({int(head) for key in logged if key.startswith(parent + ".")
+                      for head in [key[len(parent) + 1:].split(".", 1)[0]] if head.isdigit()})
+    return "[" + ",".join(_override_value(logged[f"{parent}.{i}"]) if f"{parent}.{i}" in logged
+                          else _list_override(logged, f"{parent}.{i}") for i in indices) + "]"
+
+
 def pinned_settings(row: pd.Series) -> list[str]:
     """The overrides (``key=value``) that give ``row``'s run the config it logged where today's defaults differ;
     a changed list element pins its whole list. Empty for a run without its ``overrides`` tag."""
@@ -144,10 +152,7 @@ def pinned_settings(row: pd.Series) -> list[str]:
             pins[key] = _override_value(logged[key])
             continue
         parent = ".".join(parts[:index])  # a list: pin all of it, as logged
-        items = sorted((int(k[len(parent) + 1:].split(".")[0]), v) for k, v in logged.items()
-                       if k.startswith(parent + ".") and k[len(parent) + 1:].split(".")[0].isdigit()
-                       and "." not in k[len(parent) + 1:])
-        pins[parent] = "[" + ",".join(_override_value(v) for _, v in items) + "]"
+        pins[parent] = _list_override(logged, parent)
     return [f"{key}={value}" for key, value in pins.items()]
 
 
