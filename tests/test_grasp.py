@@ -17,7 +17,7 @@ from hrc_lab.experiments.ch6_grasp import object_accuracy, random_request, train
 from hrc_lab.grasp import GRASPS
 from hrc_lab.grasp.configs import DetectorConfig, GraspSolverConfig
 from hrc_lab.grasp.diagnostics import failure_cause, scene_geometry
-from hrc_lab.grasp.graph import edge_weights, fully_connected, scene_graph
+from hrc_lab.grasp.graph import GEOMETRY_SCALE, edge_weights, fully_connected, pair_geometry, scene_graph
 from hrc_lab.grasp.iterative import IterativeAnswer, iterate, nearest_of_types
 from hrc_lab.grasp.observation import HEIGHT_UNIT, SceneNodes, finger_clearances, height_grids, scene_nodes
 from hrc_lab.grasp.relation import RELATIONS, RelationSolver, relation_filter, relation_label
@@ -55,6 +55,59 @@ def test_scene_graph_node_features():
     assert graph.x[:, 5:].tolist() == [[0, 1, 0, 0], [0, 0, 1, 1]]  # one-hot label, then the request flag g_i
     assert graph.edge_index.shape == (2, 2)
     assert graph.edge_weight.tolist() == [1.0, 1.0]
+
+
+def test_pair_geometry_gives_the_gaps_offsets_and_cover_of_each_edge():
+    boxes = np.array([[0, 0, 10, 10], [12, 0, 20, 10], [5, 5, 15, 15]], dtype=np.float32)
+    geometry = {tuple(e): g for e, g in zip(fully_connected(3).T.tolist(), pair_geometry(boxes, 100))}
+    # edge 0 -> 1: node 0's box lies 2 px left of node 1's (i's left minus j's right), beside it along y
+    gaps = np.array([0 - 20, 12 - 10, 0 - 10, 0 - 10]) / 100 * GEOMETRY_SCALE
+    np.testing.assert_allclose(geometry[(0, 1)][:4], gaps, atol=1e-6)
+    np.testing.assert_allclose(geometry[(0, 1)][4:6], np.array([-11, 0]) / 100 * GEOMETRY_SCALE, atol=1e-6)
+    assert geometry[(0, 1)][6] == 0.0  # no cover
+    assert geometry[(2, 0)][6] == pytest.approx(0.25)  # node 2's box covers a quarter of node 0's
+    assert geometry[(0, 2)][6] == pytest.approx(0.25)
+    assert pair_geometry(boxes[:1], 100).shape == (0, 7)
+
+
+def test_relational_messages_and_blockers_tell_a_neighbour_in_the_fingers_way_from_one_beside():
+    """Two scenes alike but for where the neighbour lies: beside the requested part along x (in a finger's way: move
+    b) or along y (grasp). Eq. 6.2's messages cannot tell them apart (one neighbour, weight 1, same features);
+    ★ grasp=gnn_rel_att's can."""
+    vocab = SolutionVocabulary(PART_TYPES)
+    texts = {"x": ["move", "b"], "y": ["grasp"]}
+    graphs = []
+    for side, neighbour in (("x", [12, 0, 20, 10]), ("y", [0, 30, 10, 40])):
+        graph = scene_graph(torch.zeros(2, 4), ["a", "b"], np.array([[0, 0, 10, 10], neighbour]), 100,
+                            np.array([True, False]), PART_TYPES,
+                            graspable=torch.tensor([float(side == "y"), 1.0]),
+                            solution=torch.tensor([vocab.encode(texts[side]), vocab.encode(["grasp"])]),
+                            labelled=torch.tensor([True, False]))
+        graph.blocks = torch.tensor([0.0, float(side == "x")])  # edges 0 -> 1, 1 -> 0: b blocks a only along x
+        graphs.append(graph)
+    batch = next(iter(DataLoader(graphs, batch_size=2)))
+    readings = {}
+    for name, cfg in (("gnn_att", GraspSolverConfig(hidden=32, layers=2, lstm_hidden=32)),
+                      ("gnn_rel_att", GraspSolverConfig(hidden=32, layers=2, lstm_hidden=32, conv="relation",
+                                                        blockers=True))):
+        torch.manual_seed(0)
+        net = GraspSolverNet(graphs[0].x.shape[1], len(PART_TYPES), vocab, cfg)
+        module = GraspSolverModule(net, GraspSolverConfig(lr=1e-2, schedule="constant"))
+        optimiser = module.configure_optimizers()
+        module.log_dict = module.log = lambda *a, **k: None
+        for _ in range(150):
+            optimiser.zero_grad()
+            module.training_step(batch, 0).backward()
+            optimiser.step()
+        gamma, logits = net.encode(batch)
+        blockers = net.blocker_logits(gamma, batch) if cfg.blockers else None
+        words = net.decoder.greedy(net.decoder_input(gamma, batch, torch.sigmoid(logits), blockers))
+        readings[name] = (logits[[0, 2]].tolist(), vocab.decode(words[0]), vocab.decode(words[2]), blockers)
+    assert readings["gnn_att"][0][0] == pytest.approx(readings["gnn_att"][0][1])  # Eq. 6.2: the same reading
+    logits, first, second, blockers = readings["gnn_rel_att"]
+    assert (logits[0] > 0, logits[1] > 0) == (False, True)
+    assert (first, second) == (texts["x"], texts["y"])
+    assert (blockers[[1, 3]] > 0).tolist() == [True, False]  # edge b -> a of each scene
 
 
 def test_training_scenes_carry_one_random_request_or_k_distinct_ones():
@@ -118,7 +171,7 @@ def test_decoder_learns_a_tiny_vocabulary(decoder):
         module.training_step(batch, 0).backward()
         optimiser.step()
     gamma, logits = net.encode(batch)
-    words = net.decoder.greedy(net.decoder_input(gamma, batch.label, torch.sigmoid(logits)))
+    words = net.decoder.greedy(net.decoder_input(gamma, batch, torch.sigmoid(logits)))
     assert vocab.decode(words[0]) == texts["a"]
     assert vocab.decode(words[2]) == texts["c"]
     assert (logits[[0, 2]] > 0).tolist() == [False, True]
@@ -371,6 +424,7 @@ TINY_CH6 = ["hydra.mode=RUN", "trainer.max_epochs=1", "grasp.steps=2", "grasp.de
     ("ch6/table_6_1", ["grasp=gvmrn_rf", "grasp.detector.mode=oracle", "protocol.test_images=2"]),
     ("ch6/table_6_1", ["grasp=gnn_att_depth", "grasp.decoder=transformer", "grasp.detector.mode=oracle",
                        "protocol.test_images=2"]),
+    ("ch6/table_6_1", ["grasp=gnn_rel_att_depth", "grasp.detector.mode=oracle", "protocol.test_images=2"]),
     ("ch6/table_6_2_single", ["protocol.object_counts=[3]", "protocol.cases=2"]),
     ("ch6/table_6_3", ["grasp=gvmrn_rf", "grasp.detector.mode=oracle", "protocol.test_images=2"]),
     ("ch6/table_6_3", ["grasp=vmrn", "grasp.detector.mode=oracle", "protocol.test_images=2"]),

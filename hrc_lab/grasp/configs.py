@@ -4,8 +4,10 @@
 ``gnn_att_wo_we`` (edge weights all 1), ``gnn_lstm`` (plain LSTM decoder), ``gnn_df_att`` (distance filter 0.16),
 ``gcn_att`` (GCNConv in place of the WL-GNN's GraphConv). ``gnn_att_depth`` (★, the thesis' future work) adds the
 depth image's heights to the node features (``depth_grid``); ``gnn_transformer`` (★, the thesis' future work)
-decodes the solutions with a Transformer (``decoder``). ``gvmrn_rf`` (relation classification on union-box
-features, :mod:`hrc_lab.grasp.relation`) reads ``distance_filter``, ``hidden``, ``layers`` and the training keys;
+decodes the solutions with a Transformer (``decoder``). ``gnn_rel_att`` and ``gnn_rel_att_depth`` (★, hrc_lab's)
+let the messages read the pair's box geometry (``conv`` relation) and learn the blockers (``blockers``), without
+and with depth. ``gvmrn_rf`` (relation classification on union-box features, :mod:`hrc_lab.grasp.relation`) reads
+``distance_filter``, ``hidden``, ``layers`` and the training keys;
 ``vmrn`` (Table 6.3's pair classifier, :mod:`hrc_lab.grasp.vmrn`) reads ``hidden``, ``layers`` and the training keys;
 ``rule`` (the labelling rule as the solver, :mod:`hrc_lab.grasp.rule`) learns nothing and reads only ``max_iterations``.
 """
@@ -22,7 +24,7 @@ GRASPS = Registry("grasp")
 LEVELS = ("0", "1", "2")  # detector FPN levels at strides 4, 8, 16
 DETECTOR_MODES = ("trained", "oracle")
 EDGE_MODES = ("inverse_distance", "ones", "distance_filter")
-CONVS = ("graph", "gcn")
+CONVS = ("graph", "gcn", "relation")
 DECODERS = ("lstm_att", "lstm", "transformer")
 
 
@@ -98,7 +100,9 @@ class GraspSolverConfig:
 
     edges: str = "inverse_distance"  # Eq. 6.1; "ones": every weight 1; "distance_filter": 1 within distance_filter
     distance_filter: float = 0.16  # image-normalised box-centre distance of GNN_DF_Att
-    conv: str = "graph"  # "graph": WL-GNN (PyG GraphConv, Eq. 6.2); "gcn": GCNConv
+    # "graph": WL-GNN (PyG GraphConv, Eq. 6.2); "gcn": GCNConv; ★ "relation": Eq. 6.2 whose messages also read the
+    # pair's box geometry (hrc_lab.grasp.solver.RelationConv, beyond the thesis)
+    conv: str = "graph"
     hidden: int = 128
     layers: int = 3
     # "lstm_att": LSTM with attention over segments of f' (Eq. 6.4-6.6); "lstm": plain; "transformer" (★, the thesis'
@@ -122,6 +126,10 @@ class GraspSolverConfig:
     # partition of its box and by the heights in the rule's two finger volumes beside it above the finger tips
     # (hrc_lab.grasp.observation.height_grids; the thesis' future work, 6.5). 0: off, the thesis
     depth_grid: int = 0
+    # ★ (hrc_lab, beyond the thesis): a head on each edge j -> i ([Gamma_i, Gamma_j, the pair's box geometry]) learns
+    # from the labels' blockers whether j keeps i from being grasped, and the decoder's f' is followed by the
+    # blocker types' evidence (per type, the highest such probability among i's neighbours). False: the thesis
+    blockers: bool = False
     detector: DetectorConfig = field(default_factory=DetectorConfig)
 
     def __post_init__(self) -> None:
@@ -146,7 +154,7 @@ class GraspSolverConfig:
 
 SOLVER = "hrc_lab.grasp.solver:GraspSolver"
 for _name in ("gnn_att", "gnn_att_oracle", "gnn_att_wo_we", "gnn_lstm", "gnn_df_att", "gcn_att", "gnn_att_depth",
-              "gnn_transformer"):
+              "gnn_transformer", "gnn_rel_att", "gnn_rel_att_depth"):
     GRASPS.register(_name, GraspSolverConfig, SOLVER)
 GRASPS.register("gvmrn_rf", GraspSolverConfig, "hrc_lab.grasp.relation:RelationSolver")
 GRASPS.register("vmrn", GraspSolverConfig, "hrc_lab.grasp.vmrn:VmrnSolver")

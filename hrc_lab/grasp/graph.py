@@ -7,6 +7,9 @@ request flag. The edge j -> i carries the normalised inverse distance between bo
 
 so the weights into each node sum to one and near neighbours dominate. Box centres are normalised by the image
 size, the unit of GNN_DF_Att's distance filter (0.16).
+
+Each edge also carries the pair's box geometry (:func:`pair_geometry`, ``edge_attr``), which only ★ the relational
+convolution (``grasp.conv=relation``, :class:`hrc_lab.grasp.solver.RelationConv`) reads.
 """
 
 from __future__ import annotations
@@ -44,6 +47,29 @@ def edge_weights(centres: np.ndarray, mode: str = "inverse_distance", threshold:
     return (inverse / totals[target]).astype(np.float32)
 
 
+GEOMETRY_SCALE = 10.0  # image-normalised offsets x this: a part's box (~1/10 of the image side) is about 1
+PAIR_GEOMETRY_DIM = 7
+
+
+def pair_geometry(boxes: np.ndarray, image_size: int) -> np.ndarray:
+    """(n(n-1), :data:`PAIR_GEOMETRY_DIM`) geometry of :func:`fully_connected`'s edges j -> i from (n, 4) xyxy px
+    boxes: the gaps between the boxes along x and y, each side (j's left edge minus i's right, i's left minus j's
+    right, and the same in y; a gap < 0 on both sides of an axis: the boxes overlap along it), the centre offset of j
+    from i, in image-normalised units x :data:`GEOMETRY_SCALE`, and the share of i's box that j's covers. Along x the
+    gaps are where the rule's fingers close (:mod:`hrc_lab.env.clutter.rule`); an overlap is a part that may rest on
+    another."""
+    b = np.asarray(boxes, dtype=np.float32).reshape(-1, 4) / image_size
+    source, target = np.nonzero(~np.eye(len(b), dtype=bool))
+    j, i = b[source], b[target]
+    gaps = np.stack([j[:, 0] - i[:, 2], i[:, 0] - j[:, 2], j[:, 1] - i[:, 3], i[:, 1] - j[:, 3]], axis=-1)
+    offset = (j @ _CENTRE) - (i @ _CENTRE)
+    width = np.clip(np.minimum(i[:, 2], j[:, 2]) - np.maximum(i[:, 0], j[:, 0]), 0, None)
+    height = np.clip(np.minimum(i[:, 3], j[:, 3]) - np.maximum(i[:, 1], j[:, 1]), 0, None)
+    area = np.maximum((i[:, 2] - i[:, 0]) * (i[:, 3] - i[:, 1]), 1e-9)
+    covered = (width * height / area)[:, None]
+    return np.hstack([gaps * GEOMETRY_SCALE, offset * GEOMETRY_SCALE, covered]).astype(np.float32)
+
+
 def scene_graph(
     features: torch.Tensor,
     labels: list[str],
@@ -72,6 +98,7 @@ def scene_graph(
         label=label,
         edge_index=fully_connected(len(labels)),
         edge_weight=torch.as_tensor(edge_weights(centres, mode, threshold)),
+        edge_attr=torch.as_tensor(pair_geometry(boxes, image_size)),
         num_nodes=len(labels),
         **targets,
     )

@@ -40,6 +40,8 @@ METHODS = {
     "vmrn": "VMRN",
     "gnn_att_depth": "★ GNN_Att + depth (beyond the thesis)",
     "gnn_transformer": "★ GNN_Transformer (beyond the thesis)",
+    "gnn_rel_att": "★ GNN_Rel_Att: relational messages and blockers (hrc_lab)",
+    "gnn_rel_att_depth": "★ GNN_Rel_Att + depth (hrc_lab)",
     "rule": "the labelling rule as the solver, the learned solvers' ceiling",
 }
 COLUMNS = [("train_grasp_acc", "Train_Acc"), ("oa_1", "one type"), ("oa_2", "two types"), ("oa_3", "three types")]
