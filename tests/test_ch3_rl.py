@@ -132,6 +132,19 @@ def test_report_marks_metrics_that_older_runs_did_not_log(monkeypatch):
     assert "| 0.50 " in logged  # SR, last 3 epochs: the mean of the run's last (here both) epochs
 
 
+def test_epoch_sr_pools_each_subtasks_last_epochs_or_its_whole_curve():
+    """Epoch k * epochs + e is epoch e of subtask k: the last epochs, or all of them (the area under the learning
+    curve over its length, how fast an arm learns), are pooled per subtask, then averaged over subtasks."""
+    import pandas as pd
+
+    from hrc_lab.report.ch3_rl import epochs_sr
+
+    runs = pd.DataFrame({"run_id": ["a"], "param.protocol.epochs": ["2"]})
+    curve = pd.DataFrame({"run_id": ["a"] * 4, "step": [1, 2, 3, 4], "value": [0.0, 0.4, 0.6, 1.0]})
+    assert epochs_sr(runs, curve)["a"] == pytest.approx((0.2 + 0.8) / 2)
+    assert epochs_sr(runs, curve, last=1)["a"] == pytest.approx((0.4 + 1.0) / 2)
+
+
 
 def test_report_gives_each_budget_its_own_row(monkeypatch):
     """Runs of one (experiment, lambda) trained for other epochs, Adam step sizes or demonstrations are never

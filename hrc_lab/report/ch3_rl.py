@@ -30,18 +30,20 @@ LAST_EPOCHS = 3  # "SR, last epochs": the evaluations of a subtask's last 3 epoc
 BUDGET = "epochs (Adam step size), demonstrations"
 
 
-def last_epochs_sr(runs: pd.DataFrame, history: pd.DataFrame) -> pd.Series:
-    """Per run: the mean evaluation SR over each subtask's last :data:`LAST_EPOCHS` epochs, averaged over its
-    subtasks (epoch ``k * epochs + e`` is epoch ``e`` of subtask ``k``; :mod:`hrc_lab.experiments.ch3_rl`). One
-    epoch's 20 evaluation episodes move the SR by about ±0.1; three epochs' pooled move it less."""
+def epochs_sr(runs: pd.DataFrame, history: pd.DataFrame, last: int | None = None) -> pd.Series:
+    """Per run: the mean evaluation SR over each subtask's last ``last`` epochs (every epoch: None), averaged over
+    its subtasks (epoch ``k * epochs + e`` is epoch ``e`` of subtask ``k``; :mod:`hrc_lab.experiments.ch3_rl`). One
+    epoch's 20 evaluation episodes move the SR by about ±0.1; three epochs' pooled move it less. Over every epoch it
+    is the area under the learning curve over its length: how fast an arm learns, Fig. 3.12's claim."""
     column = f"{PARAM_PREFIX}protocol.epochs"
     if column not in runs or history.empty:
         return pd.Series(dtype=float)  # runs that logged no epochs or no curve: no value
     epochs = pd.to_numeric(runs.set_index("run_id")[column], errors="coerce")
     frame = history.assign(epochs=history.run_id.map(epochs)).dropna(subset=["epochs"])
     frame = frame.assign(subtask=(frame.step - 1) // frame.epochs, epoch=(frame.step - 1) % frame.epochs + 1)
-    last = frame[frame.epoch > frame.epochs - LAST_EPOCHS]
-    return last.groupby(["run_id", "subtask"]).value.mean().groupby("run_id").mean()
+    if last is not None:
+        frame = frame[frame.epoch > frame.epochs - last]
+    return frame.groupby(["run_id", "subtask"]).value.mean().groupby("run_id").mean()
 
 
 def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str, png: str) -> Section:
@@ -51,7 +53,8 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
     runs = runs.assign(lam=lam_of(runs), budget=runs.apply(run_budget, axis=1))
     history = histories(runs, "success_rate").merge(runs[["run_id", "scenario", "lam", "budget", "seed"]],
                                                     on="run_id")
-    runs = runs.assign(last_epochs_success_rate=runs.run_id.map(last_epochs_sr(runs, history)))
+    runs = runs.assign(last_epochs_success_rate=runs.run_id.map(epochs_sr(runs, history, LAST_EPOCHS)),
+                       mean_epochs_success_rate=runs.run_id.map(epochs_sr(runs, history)))
     scenarios = sorted(runs.scenario.unique())
     fig, axes = plt.subplots(1, len(scenarios), figsize=(5 * len(scenarios), 3.4), squeeze=False)
     rows, csv = [], []
@@ -74,6 +77,7 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
             for metric, label in (("final_success_rate", "final SR"),
                                   ("last_epochs_success_rate", f"SR, last {LAST_EPOCHS} epochs"),
                                   ("best_success_rate", "best SR"),
+                                  ("mean_epochs_success_rate", "SR, mean over epochs"),
                                   ("final_distance", "final ‖P_obj − P_goal‖ (evaluation)"),
                                   ("final_grip_rate", "evaluation episodes that held the part"),
                                   ("final_moved_rate", "evaluation episodes that moved it > 2 cm"),
