@@ -458,6 +458,34 @@ def test_table_6_1_section_decomposes_the_object_accuracy():
     assert "Where the object accuracy is lost" not in older.markdown and "lie within" not in older.markdown
 
 
+def test_table_6_1_default_section_plots_the_oa_over_the_training_set_size(monkeypatch):
+    """The default section reads the runs whose only override is ``protocol.train_images`` beside its own, per
+    method run at two sizes or more; a run with another override too stays out."""
+    from hrc_lab.report import ch6_grasp
+
+    load_sections()
+
+    def run(method, seed, images, variant="default", overrides=""):
+        return {"method": method, "seed": seed, "cell": "clutter", "run_id": f"{method}{seed}{images}{variant}",
+                "variant": variant, "variant_overrides": overrides, "experiment": "ch6/table_6_1",
+                "param.logger.tracking_uri": "sqlite:///x.db", "param.protocol.train_images": str(images),
+                **{f"oa_{k}": images / 5000 + k / 100 + seed / 50 for k in (1, 2, 3)}, "train_grasp_acc": 1.0}
+
+    every = pd.DataFrame([run("gnn_att", 0, 427), run("gnn_att", 1, 427), run("gcn_att", 0, 427),
+                          run("gnn_att", 0, 1708, "v1", "protocol.train_images=1708"),
+                          run("gnn_att", 1, 1708, "v1", "protocol.train_images=1708"),
+                          run("gcn_att", 0, 1708, "v2", "protocol.train_images=1708 grasp.steps=10")])
+    monkeypatch.setattr(ch6_grasp, "fetch_runs", lambda uri, experiment, variant: every)
+    section = SECTIONS["table_6_1"](every[every.variant == "default"])
+    assert "training_images.png" in section.figures
+    table = section.markdown.split("Over the number of training images")[1]
+    assert ("| GNN_Att (ours) | 0.11 ± 0.01 / 0.12 ± 0.01 / 0.13 ± 0.01 | 0.36 ± 0.01 / 0.37 ± 0.01 / 0.38 ± 0.01 |"
+            in re.sub(r" +", " ", table))
+    assert "GCN_Att" not in table  # its 1708-image run has another override too
+    ablation = SECTIONS["table_6_1"](every[every.variant == "v1"])
+    assert "Over the number of training images" not in ablation.markdown
+
+
 def test_table_6_2_section_gives_the_failure_causes_and_answer_lengths(monkeypatch):
     from hrc_lab.report import ch6_grasp
 

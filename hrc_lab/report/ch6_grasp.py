@@ -16,8 +16,11 @@ import pandas as pd  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from hrc_lab.grasp.diagnostics import FAILURE_CAUSES  # noqa: E402
+from hrc_lab.report.defaults import PARAM_PREFIX  # noqa: E402
 from hrc_lab.report.runs import (  # noqa: E402
+    DEFAULT_VARIANT,
     amount,
+    fetch_runs,
     histories,
     keyed,
     over_seeds,
@@ -83,6 +86,13 @@ def table_6_1(runs: pd.DataFrame) -> Section:
         figures["solver_curve.png"] = curve
         text += ["", "The solver's training curve (GNN_Att, graspability accuracy on its training nodes per epoch, "
                  f"one line per seed; dashed: {FIT_TARGET}):"]
+    sizes = _training_set_sizes(runs)
+    if sizes is not None:
+        table, figure = sizes
+        figures["training_images.png"] = figure
+        text += ["", "Over the number of training images (this section's runs and those of the sections whose only "
+                 "override is `protocol.train_images`; mean ± std over seeds, OA for one / two / three requested "
+                 "types; generated scenes are free, the thesis trained on 427):", "", markdown_table(table)]
     ours = runs[runs.method == "gnn_att"]
     artifacts = {}
     if len(ours) and "geometry_blockers_within_filter" in ours:
@@ -90,6 +100,51 @@ def table_6_1(runs: pd.DataFrame) -> Section:
     return Section(
         "Table 6.1: object accuracy on single images", "\n".join(text), pd.DataFrame(records), figures, artifacts
     )
+
+
+TRAIN_IMAGES = f"{PARAM_PREFIX}protocol.train_images"
+
+
+def _training_set_sizes(runs: pd.DataFrame):
+    """For the default section: (table, figure) of the OA per method over ``protocol.train_images``, from every
+    finished run of the experiment in the same store whose only override (beyond the default's) is that key; the
+    methods run at two sizes or more. None otherwise."""
+    uri = f"{PARAM_PREFIX}logger.tracking_uri"
+    if set(runs.get("variant", [])) != {DEFAULT_VARIANT} or not {uri, "experiment"} <= set(runs):
+        return None
+    every = fetch_runs(runs[uri].iloc[0], runs["experiment"].iloc[0], variant=None)
+    own = every["variant_overrides"].fillna("").astype(str).str.strip()
+    sized = every[((every["variant"] == DEFAULT_VARIANT) | own.str.fullmatch(r"protocol\.train_images=\d+"))
+                  & every[TRAIN_IMAGES].notna()]
+    sized = sized.assign(images=pd.to_numeric(sized[TRAIN_IMAGES]), oa=_pooled(sized, "oa"))
+    counts = sized.groupby("method").images.nunique()
+    methods = [m for m in METHODS if counts.get(m, 0) > 1]
+    if not methods:
+        return None
+    rows, fig = [], plt.figure(figsize=(5.5, 3.4))
+    ax = fig.gca()
+    for k, method in enumerate(methods):
+        mine = sized[sized.method == method]
+        row, xs, means, stds = {"method": METHODS[method]}, [], [], []
+        for images, at in sorted(mine.groupby("images")):
+            row[f"{int(images)} images"] = " / ".join(fmt(*spread(at, f"oa_{n}"), 2) for n in REQUEST_SIZES)
+            xs.append(images)
+            means.append(at.oa.mean())
+            stds.append(at.oa.std(ddof=0) if len(at) > 1 else 0.0)
+        rows.append(row)
+        ax.errorbar(xs, means, yerr=stds, marker="o", capsize=3, color=f"C{k}", label=METHODS[method])
+    thesis = thesis_results()["ch6"]["table_6_1"]["gnn_att"]
+    ax.axhline(min(ref[0] for ref in thesis[1:]), color="grey", linestyle="--", linewidth=1,
+               label="thesis GNN_Att, three types (427 images)")
+    ax.set_xscale("log", base=2)
+    ticks = sorted(sized.images.unique())
+    ax.set_xticks(ticks, [str(int(t)) for t in ticks])
+    ax.minorticks_off()
+    ax.set_xlabel("training images (log scale)")
+    ax.set_ylabel("object accuracy, mean of 1-3 types")
+    ax.legend(fontsize=6)
+    fig.tight_layout()
+    return pd.DataFrame(rows).fillna("–"), fig
 
 
 def _pooled(runs: pd.DataFrame, stem: str) -> pd.Series:
