@@ -458,7 +458,7 @@ def test_table_6_1_section_decomposes_the_object_accuracy():
     assert "Where the object accuracy is lost" not in older.markdown and "lie within" not in older.markdown
 
 
-def test_table_6_1_default_section_plots_the_oa_over_the_training_set_size(monkeypatch):
+def test_table_6_1_default_section_plots_the_oa_over_the_training_set_size(monkeypatch, tmp_path):
     """The default section reads the runs whose only override is ``protocol.train_images`` beside its own, per
     method run at two sizes or more; a run with another override too stays out."""
     from hrc_lab.report import ch6_grasp
@@ -468,7 +468,7 @@ def test_table_6_1_default_section_plots_the_oa_over_the_training_set_size(monke
     def run(method, seed, images, variant="default", overrides=""):
         return {"method": method, "seed": seed, "cell": "clutter", "run_id": f"{method}{seed}{images}{variant}",
                 "variant": variant, "variant_overrides": overrides, "experiment": "ch6/table_6_1",
-                "param.logger.tracking_uri": "sqlite:///x.db", "param.protocol.train_images": str(images),
+                "param.logger.tracking_uri": f"sqlite:///{tmp_path}/x.db", "param.protocol.train_images": str(images),
                 **{f"oa_{k}": images / 5000 + k / 100 + seed / 50 for k in (1, 2, 3)}, "train_grasp_acc": 1.0}
 
     every = pd.DataFrame([run("gnn_att", 0, 427), run("gnn_att", 1, 427), run("gcn_att", 0, 427),
