@@ -127,7 +127,7 @@ def _training_set_sizes(runs: pd.DataFrame):
         mine = sized[sized.method == method]
         row, xs, means, stds = {"method": METHODS[method]}, [], [], []
         for images, at in sorted(mine.groupby("images")):
-            row[f"{int(images)} images"] = " / ".join(fmt(*spread(at, f"oa_{n}"), 2) for n in REQUEST_SIZES)
+            row[f"{int(images)} images"] = " / ".join(fmt(*spread(at, f"oa_{n}"), 3) for n in REQUEST_SIZES)
             xs.append(images)
             means.append(at.oa.mean())
             stds.append(at.oa.std(ddof=0) if len(at) > 1 else 0.0)
