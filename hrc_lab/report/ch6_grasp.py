@@ -113,6 +113,8 @@ def _training_set_sizes(runs: pd.DataFrame):
     if set(runs.get("variant", [])) != {DEFAULT_VARIANT} or not {uri, "experiment"} <= set(runs):
         return None
     every = fetch_runs(runs[uri].iloc[0], runs["experiment"].iloc[0], variant=None)
+    if every.empty or TRAIN_IMAGES not in every:
+        return None
     own = every["variant_overrides"].fillna("").astype(str).str.strip()
     sized = every[((every["variant"] == DEFAULT_VARIANT) | own.str.fullmatch(r"protocol\.train_images=\d+"))
                   & every[TRAIN_IMAGES].notna()]
