@@ -57,6 +57,18 @@ def test_scene_graph_node_features():
     assert graph.edge_weight.tolist() == [1.0, 1.0]
 
 
+def fit_tiny(net: GraspSolverNet, batch, steps: int = 150) -> GraspSolverNet:
+    """``steps`` Adam steps (1e-2) of the solver's objective on one batch, without a Trainer."""
+    module = GraspSolverModule(net, GraspSolverConfig(lr=1e-2, schedule="constant"))
+    optimiser = module.configure_optimizers()
+    module.log_dict = module.log = lambda *a, **k: None
+    for _ in range(steps):
+        optimiser.zero_grad()
+        module.training_step(batch, 0).backward()
+        optimiser.step()
+    return net
+
+
 def test_pair_geometry_gives_the_gaps_offsets_and_cover_of_each_edge():
     boxes = np.array([[0, 0, 10, 10], [12, 0, 20, 10], [5, 5, 15, 15]], dtype=np.float32)
     geometry = {tuple(e): g for e, g in zip(fully_connected(3).T.tolist(), pair_geometry(boxes, 100))}
@@ -91,14 +103,7 @@ def test_relational_messages_and_blockers_tell_a_neighbour_in_the_fingers_way_fr
                       ("gnn_rel_att", GraspSolverConfig(hidden=32, layers=2, lstm_hidden=32, conv="relation",
                                                         blockers=True))):
         torch.manual_seed(0)
-        net = GraspSolverNet(graphs[0].x.shape[1], len(PART_TYPES), vocab, cfg)
-        module = GraspSolverModule(net, GraspSolverConfig(lr=1e-2, schedule="constant"))
-        optimiser = module.configure_optimizers()
-        module.log_dict = module.log = lambda *a, **k: None
-        for _ in range(150):
-            optimiser.zero_grad()
-            module.training_step(batch, 0).backward()
-            optimiser.step()
+        net = fit_tiny(GraspSolverNet(graphs[0].x.shape[1], len(PART_TYPES), vocab, cfg), batch)
         gamma, logits = net.encode(batch)
         blockers = net.blocker_logits(gamma, batch) if cfg.blockers else None
         words = net.decoder.greedy(net.decoder_input(gamma, batch, torch.sigmoid(logits), blockers))
@@ -161,15 +166,8 @@ def test_decoder_learns_a_tiny_vocabulary(decoder):
             labelled=torch.tensor([True, False]),
         )
         graphs.append(graph)
-    net = GraspSolverNet(graphs[0].x.shape[1], len(PART_TYPES), vocab, cfg)
-    module = GraspSolverModule(net, GraspSolverConfig(lr=1e-2, schedule="constant"))  # no Trainer here
-    optimiser = module.configure_optimizers()
     batch = next(iter(DataLoader(graphs, batch_size=2)))
-    module.log_dict = module.log = lambda *a, **k: None
-    for _ in range(150):
-        optimiser.zero_grad()
-        module.training_step(batch, 0).backward()
-        optimiser.step()
+    net = fit_tiny(GraspSolverNet(graphs[0].x.shape[1], len(PART_TYPES), vocab, cfg), batch)
     gamma, logits = net.encode(batch)
     words = net.decoder.greedy(net.decoder_input(gamma, batch, torch.sigmoid(logits)))
     assert vocab.decode(words[0]) == texts["a"]
