@@ -127,13 +127,12 @@ def _training_set_sizes(runs: pd.DataFrame):
     ax = fig.gca()
     for k, method in enumerate(methods):
         mine = sized[sized.method == method]
-        row, xs, means, stds = {"method": METHODS[method]}, [], [], []
+        row, points = {"method": METHODS[method]}, []
         for images, at in sorted(mine.groupby("images")):
             row[f"{int(images)} images"] = " / ".join(fmt(*spread(at, f"oa_{n}"), 3) for n in REQUEST_SIZES)
-            xs.append(images)
-            means.append(at.oa.mean())
-            stds.append(at.oa.std(ddof=0) if len(at) > 1 else 0.0)
+            points.append((images, *spread(at, "oa")))
         rows.append(row)
+        xs, means, stds = zip(*points)
         ax.errorbar(xs, means, yerr=stds, marker="o", capsize=3, color=f"C{k}", label=METHODS[method])
     thesis = thesis_results()["ch6"]["table_6_1"]["gnn_att"]
     ax.axhline(min(ref[0] for ref in thesis[1:]), color="grey", linestyle="--", linewidth=1,
