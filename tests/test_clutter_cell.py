@@ -12,6 +12,7 @@ from hrc_lab.env.clutter.rule import blocker_solution, blockers, graspable, part
 from hrc_lab.env.clutter.scenes import generate_scene
 from hrc_lab.env.clutter.spec import ClutterSpec
 from hrc_lab.experiments.ch6_grasp import iterative_correct
+from hrc_lab.experiments.schemas import Table62RobotProtocol
 from hrc_lab.grasp.observation import SceneNodes
 from hrc_lab.grasp.solver import NodeReading
 
@@ -21,13 +22,14 @@ THREE = replace(SPEC, min_objects=3, max_objects=3)
 A_UNDER_B = 168  # generate_scene(THREE, 168): a b lies on the only a; the rule: move b, then grasp a
 ONE_PART_SEEDS = {"a": 0, "b": 1, "c": 11}  # single-part scenes of each type (generate_scene(SINGLE, seed))
 TRAY = np.array([0.0, 0.3])
+GRIP_DEPTH = Table62RobotProtocol().grip_depth  # the robot row's
 
 
 @pytest.fixture(scope="module")
 def cell():
     from hrc_lab.env.robot.clutter_cell import ClutterCell
 
-    made = ClutterCell(SPEC, seed=0)
+    made = ClutterCell(SPEC, seed=0, grip_depth=GRIP_DEPTH)
     yield made
     made.close()
 
@@ -56,6 +58,17 @@ def test_depth_gives_each_free_parts_top_within_a_centimetre(cell):
         assert np.linalg.norm(cell.locate(obj.box, depth) - top) < 0.01
 
 
+def test_the_gripper_comes_straight_down_and_its_tips_stop_above_the_table(cell):
+    from hrc_lab.env.robot.clutter_cell import TIP_CLEARANCE
+
+    cell.place_scene(generate_scene(SPEC, 42))
+    turned = cell.sim.data.site_xmat[cell._eef_site].reshape(3, 3)
+    assert np.degrees(np.arccos(-turned[2, 2])) < 0.5  # the gripper's axis within half a degree of vertical
+    assert np.allclose(cell.top_down(turned), np.diag([1.0, -1.0, -1.0]))  # the fingers close along x
+    assert cell._tips(np.array([0.0, 0.0, 0.1])) == pytest.approx(0.1 - GRIP_DEPTH)
+    assert cell._tips(np.array([0.0, 0.0, 0.018])) == TIP_CLEARANCE  # an a flat on the table: not into the table
+
+
 @pytest.mark.parametrize("part_type", ["a", pytest.param("b", marks=pytest.mark.slow),
                                        pytest.param("c", marks=pytest.mark.slow)])  # b, c: CI's slow step
 def test_the_gripper_picks_an_isolated_part_of_each_type(part_type):
@@ -63,7 +76,7 @@ def test_the_gripper_picks_an_isolated_part_of_each_type(part_type):
 
     scene = generate_scene(SINGLE, ONE_PART_SEEDS[part_type])
     assert scene.types == [part_type]
-    cell = ClutterCell(SINGLE, seed=0)
+    cell = ClutterCell(SINGLE, seed=0, grip_depth=GRIP_DEPTH)
     try:
         cell.place_scene(scene)
         _, _, depth = cell.image()

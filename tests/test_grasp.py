@@ -288,6 +288,11 @@ def test_object_counts_are_checked_against_the_env(compose_config):
         validate_config(compose_config("experiment=ch6/table_6_2_single", "protocol.object_counts=[0]"))
 
 
+def test_the_robot_rows_grip_depth_is_checked(compose_config):
+    with pytest.raises(ConfigError, match=r"protocol.grip_depth must be > 0 m, got 0.0"):
+        validate_config(compose_config("experiment=ch6/table_6_2_robot", "protocol.grip_depth=0.0"))
+
+
 def _nodes(types, boxes, blockers):
     """SceneNodes for hand-made boxes whose objects are the parts themselves (oracle boxes)."""
     objects = [

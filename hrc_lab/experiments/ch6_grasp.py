@@ -255,7 +255,7 @@ def table_6_2_robot(ctx: RunContext) -> dict[str, float]:
 
     spec, protocol, detector, solver, metrics = prepare(ctx)
     cfg = ctx.cfg.grasp
-    cell = ClutterCell(spec, seed=ctx.seed)
+    cell = ClutterCell(spec, seed=ctx.seed, grip_depth=protocol.grip_depth)
     rng = ctx.rng(63)  # the single-image row's stream: the same requested type for each scene
 
     def episode_of(cell, scene, fixed, goal, on_decision=None):
@@ -317,7 +317,7 @@ def robot_video(ctx: RunContext, episode_of, scene: ClutterScene, spec: ClutterS
     from hrc_lab.env.robot.recorder import FrameRecorder, save_video
     from hrc_lab.env.robot.settings import CELL_CAMERA
 
-    cell = ClutterCell(spec, seed=ctx.seed, render=True)
+    cell = ClutterCell(spec, seed=ctx.seed, render=True, grip_depth=ctx.cfg.protocol.grip_depth)
     try:
         recorder = FrameRecorder(cell, CELL_CAMERA, 480, 360, frame_skip=2)
         cell.on_step = recorder.tick

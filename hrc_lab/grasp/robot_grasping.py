@@ -15,7 +15,8 @@ Algorithm 4 ends in help too. Otherwise its failure is the first of
 the single-image causes of the answer that went wrong (:func:`hrc_lab.grasp.diagnostics.failure_cause`, judged
 against the rule on the scene as it was then: ``detection``, ``graspability``, ``solution``, ``other``), ``slip``
 (the gripper closed on the named part and nothing rose with it), ``collision`` (the gripper moved a neighbour by
-more than :data:`DISTURBED` while grasping) and ``iteration_bound``.
+more than :data:`DISTURBED` while grasping; the named part itself is no neighbour: a grasp that only pushed it is a
+slip) and ``iteration_bound``.
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ class RobotStep:
     right: bool  # the single-image answer agrees with the rule on this scene
     cause: str  # its failure cause when it does not
     held: str | None = None  # the type of the part that rose with the gripper
-    disturbed: int = 0  # neighbours the grasp moved by more than DISTURBED
+    disturbed: int = 0  # neighbours (parts other than the named one) the grasp moved by more than DISTURBED
     yaw_deg: float = 0.0  # the grasp's approach yaw (0: the rule's fingers closing along x)
     seconds: dict[str, float] = field(default_factory=dict)  # render, detection, reasoning, motion (0: no grasp)
 
@@ -77,7 +78,7 @@ def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[o
     aside = 0
     for _ in range(max_grasps):
         start = time.perf_counter()
-        now, _ = cell.current_scene(scene.seed)
+        now, shown = cell.current_scene(scene.seed)
         rendered = time.perf_counter()
         nodes = perceive(now)
         detected = time.perf_counter()
@@ -114,7 +115,8 @@ def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[o
         step.yaw_deg = float(np.degrees(yaw))
         outcome = cell.pick(cell.locate(box, now.depth), half_opening, yaw)
         moved = np.linalg.norm(cell.part_poses()[0] - before, axis=1)
-        step.disturbed = int(sum(moved[j] > DISTURBED for j in outcome.touched))
+        named = shown[nodes.truth[answer.grasp]] if nodes.truth[answer.grasp] >= 0 else None  # the part it aimed at
+        step.disturbed = int(sum(moved[j] > DISTURBED for j in outcome.touched if j != named))
         if outcome.held is None:
             step.seconds["motion"] = time.perf_counter() - reasoned
             return RobotEpisode(goal, steps, False, step.cause or ("collision" if step.disturbed else "slip"))

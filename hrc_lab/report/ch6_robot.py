@@ -15,8 +15,9 @@ from hrc_lab.report.thesis import fmt, markdown_table, thesis_results, thesis_va
 ROBOT_FAILURES_TEXT = (
     "*detection*, *graspability*, *solution*, *other*: the single-image answer of an iteration was wrong, judged "
     "against the rule on the scene as it then was (as in the single-image row); *slip*: the gripper closed on the "
-    "named part and nothing rose with it; *collision*: the gripper moved a neighbour by more than 5 mm and the "
-    "grasp failed; *iteration_bound*: `protocol.max_grasps` grasps without a delivery."
+    "named part and nothing rose with it (it may have pushed the part); *collision*: the gripper moved a neighbour "
+    "(not the named part) by more than 5 mm and the grasp failed; *iteration_bound*: `protocol.max_grasps` grasps "
+    "without a delivery."
 )
 
 
@@ -41,6 +42,15 @@ def _approach(runs: pd.DataFrame) -> str:
                 f"{first} (`protocol.choose_yaw`, `protocol.yaw_order`)")
     return "its fingers closing along x as the rule's (" + (
         "runs before `protocol.choose_yaw`)" if value == NOT_LOGGED else "`protocol.choose_yaw=false`)")
+
+
+def _grip(runs: pd.DataFrame) -> str:
+    """How deep below the part's top the finger tips go (``protocol.grip_depth``)."""
+    value = setting(runs, "protocol.grip_depth")
+    if value == NOT_LOGGED:
+        return ("the finger tips 8 mm below the part's top, the rule's `env.grasp_depth` (runs before "
+                "`protocol.grip_depth`)")
+    return f"the finger tips {float(value) * 1000:g} mm below the part's top (`protocol.grip_depth`)"
 
 
 @register_section("table_6_2_robot")
@@ -70,9 +80,9 @@ def table_6_2_robot(runs: pd.DataFrame) -> Section:
         f"({amount(runs, 'protocol.cases', 'scenes')} per part count, the same seeds and draws) placed in the "
         "robosuite cell (UR5e, Robotiq 2F-140; `hrc_lab/env/robot/clutter_cell.py`). Each iteration images the "
         "scene, detects, reads the graph until the single-image answer, and grasps the part it names at the 3-D "
-        f"point of its box (depth image + camera model), {_opening(runs)}, {_approach(runs)}: a part of the "
-        "requested type goes to the tray and the episode succeeds; another part is put aside and the scene imaged "
-        "again. An episode that ends in help succeeds when the rule's own Algorithm 4 also ends in help. "
+        f"point of its box (depth image + camera model), {_opening(runs)}, {_approach(runs)}, {_grip(runs)}: a part "
+        "of the requested type goes to the tray and the episode succeeds; another part is put aside and the scene "
+        "imaged again. An episode that ends in help succeeds when the rule's own Algorithm 4 also ends in help. "
         f"{over_seeds(runs, start=True)}; thesis (real UR10, 10 cases per count) in brackets; the single-image row "
         "is in [ch6_grasp.md](ch6_grasp.md).",
         "",

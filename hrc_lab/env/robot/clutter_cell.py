@@ -16,7 +16,9 @@ part at every yaw and closes to about 19 mm.
   image is taken (it is not drawn). :meth:`ClutterCell.locate` turns a detected box into a 3-D grasp point from
   the depth image and the camera model (no orientation: the thesis' depth camera).
 - **Grasp** (the rule's, Sec. 6.3): top down, the fingers closing along the world x axis (the wrist is turned a
-  quarter turn from robosuite's UR5e default), the finger tips ``grasp_depth`` below the part's top. Fully open,
+  quarter turn from robosuite's UR5e default; the gripper is held straight down, :meth:`ClutterCell.top_down`), the
+  finger tips ``grip_depth`` below the part's top (default the rule's ``grasp_depth``; never below
+  :data:`TIP_CLEARANCE` above the table). Fully open,
   the 2F-140's pads stand about 6 cm either side of the grasp point, where the rule (and the thesis' 2F-85) has the
   fingers just outside the part, so they come down on neighbours the rule calls clear. With a pre-grasp opening
   (:meth:`ClutterCell.grasp_opening`) the fingers open only to the part's x-extent, seen in the depth image, plus
@@ -82,6 +84,7 @@ FINGER_HALF_WIDTH = 0.016  # m across the closing axis
 YAW_CANDIDATES = 12  # approach yaws tried, every 15 degrees over the gripper's half turn of symmetry
 NARROWEST_BIN = 0.004  # m: of the clear yaws, the narrowest opening (in bins of this) wins, then the smallest turn
 TOP_FACE_BAND = 0.005  # m: pixels of the box this close below the grasp point's height are the part's top face
+TIP_CLEARANCE = 0.002  # m: the finger tips stop this far above the table however deep the grip
 
 
 @dataclass
@@ -97,9 +100,14 @@ class PickOutcome:
 class ClutterCell(ManipulationEnv):
     """See the module docstring. ``spec``: the clutter spec the scenes come from."""
 
-    def __init__(self, spec: ClutterSpec, seed: int | None = None, render: bool = False) -> None:
-        """``render``: build robosuite's off-screen renderer, for videos from :data:`CELL_CAMERA`."""
+    def __init__(self, spec: ClutterSpec, seed: int | None = None, render: bool = False,
+                 grip_depth: float | None = None) -> None:
+        """``render``: build robosuite's off-screen renderer, for videos from :data:`CELL_CAMERA`; ``grip_depth``: how
+        far below a part's top the finger tips go (m; default the rule's ``spec.grasp_depth``)."""
         self.spec = spec
+        self.grip_depth = spec.grasp_depth if grip_depth is None else float(grip_depth)
+        if self.grip_depth <= 0:
+            raise ValueError(f"grip_depth must be > 0 m, got {self.grip_depth}")
         self.slots = [t for t in PART_TYPES for _ in range(spec.max_counts[t])]
         self.active: list[int] = []
         self.camera: SceneCamera | None = None
@@ -159,7 +167,7 @@ class ClutterCell(ManipulationEnv):
         for slot in range(len(self.slots)):
             self._set_part(slot, [*self._parked(slot), self.spec.part_size[self.slots[slot]][2] / 2], [1, 0, 0, 0])
         self.sim.forward()
-        self._down = self.sim.data.site_xmat[self._eef_site].reshape(3, 3).copy()  # the gripper's home orientation
+        self._down = self.top_down(self.sim.data.site_xmat[self._eef_site].reshape(3, 3))
         self._yaw = 0.0
         self._tip_below_site = self.sim.data.site_xpos[self._eef_site][2] - self._lowest_finger_point()
 
@@ -257,7 +265,7 @@ class ClutterCell(ManipulationEnv):
         if order not in YAW_ORDERS:
             raise ValueError(f"yaw order must be one of {YAW_ORDERS}, got '{order}'")
         point = self.locate(box, depth)
-        tips = point[2] - self.spec.grasp_depth
+        tips = self._tips(point)
         rows, cols = np.indices(depth.shape)
         cloud = self.spec.unproject(np.stack([cols + 0.5, rows + 0.5], axis=-1), depth)
         offsets, heights = cloud[..., :2] - point[:2], cloud[..., 2]
@@ -306,7 +314,7 @@ class ClutterCell(ManipulationEnv):
         point = np.asarray(point, dtype=float)
         before = self.part_poses()[0][:, 2]
         touched: set[int] = set()
-        grasp = point + [0, 0, self._tip_below_site - self.spec.grasp_depth]  # the finger tips grasp_depth below
+        grasp = np.array([*point[:2], self._tips(point) + self._tip_below_site])
         self._hold(grasp + [0, 0, APPROACH], grip=open_grip)
         self._hold(grasp, grip=open_grip, touched=touched)
         self._hold(grasp, grip=1.0, steps=GRIP_STEPS, touched=touched)
@@ -325,6 +333,22 @@ class ClutterCell(ManipulationEnv):
         self._hold(np.array([*xy, LIFT]) + [*grip_to_part[:2], 0], grip=-1.0)
         self._yaw = 0.0
         self._hold(OBSERVE, grip=-1.0)
+
+    @staticmethod
+    def top_down(home: np.ndarray) -> np.ndarray:
+        """The gripper orientation (rotation matrix) straight down nearest to ``home``: each axis of the home pose
+        snapped to the world axis it is closest to. robosuite's UR5e home holds the gripper tilted 2.6 degrees and
+        turned 2.8 degrees, so the 2F-140's pads stood 6 mm apart in height and closed off the world x axis."""
+        snapped = np.zeros((3, 3))
+        for column in range(3):
+            row = int(np.argmax(np.abs(home[:, column])))
+            snapped[row, column] = np.sign(home[row, column])
+        return snapped
+
+    def _tips(self, point: np.ndarray) -> float:
+        """The finger tips' height for a grasp at ``point`` (the part's top): ``grip_depth`` below it, no lower
+        than :data:`TIP_CLEARANCE`."""
+        return max(float(point[2]) - self.grip_depth, TIP_CLEARANCE)
 
     def object_type(self, index: int) -> str:
         """The part type of the placed scene's object ``index``."""
