@@ -65,6 +65,8 @@ def test_the_gripper_comes_straight_down_and_its_tips_stop_above_the_table(cell)
     turned = cell.sim.data.site_xmat[cell._eef_site].reshape(3, 3)
     assert np.degrees(np.arccos(-turned[2, 2])) < 0.5  # the gripper's axis within half a degree of vertical
     assert np.allclose(cell.top_down(turned), np.diag([1.0, -1.0, -1.0]))  # the fingers close along x
+    tips_now = cell.sim.data.site_xpos[cell._eef_site][2] - cell._lowest_finger_point()
+    assert tips_now == pytest.approx(cell._tip_below_site, abs=5e-4)  # measured in the pose it grasps in
     assert cell._tips(np.array([0.0, 0.0, 0.1])) == pytest.approx(0.1 - GRIP_DEPTH)
     assert cell._tips(np.array([0.0, 0.0, 0.018])) == TIP_CLEARANCE  # an a flat on the table: not into the table
 

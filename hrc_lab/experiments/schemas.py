@@ -693,9 +693,10 @@ class Table62RobotProtocol(Table62SingleProtocol):
     # contacts the depth image did not predict)
     yaw_order: str = "smallest_turn"
     # how far below the named part's top the finger tips go, m (ClutterCell.grip_depth). At the rule's env.grasp_depth
-    # (8 mm) the 2F-140's pads overlapped the part by 0-5 mm and b and c slipped out: of the 23 grasps of rule-correct
-    # parts that lifted nothing in the robot row at 3,416 images, replayed on ground-truth boxes, 21 lifted their part
-    # at 24 mm and 8 at 8 mm (issue 47 item 2, docs/chapters/ch6.md)
+    # (8 mm) the 2F-140's pads overlapped the part by 0-5 mm and b and c slipped out: the 23 grasps of rule-correct
+    # parts that lifted nothing in the ★ robot row at 3,416 images (3 seeds), replayed on ground-truth boxes, lifted
+    # their part 6 times in the cell as it was (gripper tilted 2.6 degrees, 8 mm), 9 straight down at 8 mm, 21 at
+    # 24 mm (issue 47 item 2, docs/chapters/ch6.md)
     grip_depth: float = 0.024
 
     def __post_init__(self) -> None:

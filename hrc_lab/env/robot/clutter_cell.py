@@ -129,6 +129,9 @@ class ClutterCell(ManipulationEnv):
             seed=seed,
         )
         self.finger_openings()
+        self._hold(OBSERVE, grip=-1.0, steps=GRIP_STEPS)
+        # how far the finger tips reach below the gripper site, open and straight down (m)
+        self._tip_below_site = self.sim.data.site_xpos[self._eef_site][2] - self._lowest_finger_point()
         self.reset()
 
     # --- model ------------------------------------------------------------------------------------------------
@@ -169,7 +172,6 @@ class ClutterCell(ManipulationEnv):
         self.sim.forward()
         self._down = self.top_down(self.sim.data.site_xmat[self._eef_site].reshape(3, 3))
         self._yaw = 0.0
-        self._tip_below_site = self.sim.data.site_xpos[self._eef_site][2] - self._lowest_finger_point()
 
     def reward(self, action=None) -> float:
         return 0.0
@@ -419,7 +421,7 @@ class ClutterCell(ManipulationEnv):
         return (norm > MIN_SUPPORT_FORCE) & (push[..., 2] > VERTICAL_NORMAL * norm)
 
     def _lowest_finger_point(self) -> float:
-        """The world height of the lowest corner of the gripper's finger geoms (open, at home)."""
+        """The world height of the lowest corner of the gripper's finger geoms now."""
         model, data = self.sim.model, self.sim.data
         signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
         lowest = np.inf
