@@ -67,8 +67,8 @@ def test_the_gripper_comes_straight_down_and_its_tips_stop_above_the_table(cell)
     assert np.allclose(cell.top_down(turned), np.diag([1.0, -1.0, -1.0]))  # the fingers close along x
     tips_now = cell.sim.data.site_xpos[cell._eef_site][2] - cell._lowest_finger_point()
     assert tips_now == pytest.approx(cell._tip_below_site, abs=5e-4)  # measured in the pose it grasps in
-    assert cell._tips(np.array([0.0, 0.0, 0.1])) == pytest.approx(0.1 - GRIP_DEPTH)
-    assert cell._tips(np.array([0.0, 0.0, 0.018])) == TIP_CLEARANCE  # an a flat on the table: not into the table
+    assert cell.tips_for(np.array([0.0, 0.0, 0.1])) == pytest.approx(0.1 - GRIP_DEPTH)
+    assert cell.tips_for(np.array([0.0, 0.0, 0.018])) == TIP_CLEARANCE  # an a flat on the table: not into the table
 
 
 @pytest.mark.parametrize("part_type", ["a", pytest.param("b", marks=pytest.mark.slow),
@@ -129,14 +129,29 @@ def test_the_approach_yaw_turns_the_fingers_away_from_a_tall_neighbour(cell):
     corners = SPEC.project(np.array([[-0.015, 0.015, 0.03], [0.015, -0.015, 0.03]]))
     box = np.array([*corners[0], *corners[1]], dtype=np.float32)
     alone = _depth_of_blocks([part])
-    yaw, half = cell.grasp_yaw(box, alone, True, "smallest_turn")
-    assert yaw == 0.0 and half == pytest.approx(cell.grasp_opening(box, alone), abs=0.004)
+    approach = cell.grasp_yaw(box, alone, True, "smallest_turn")
+    assert approach.yaw == 0.0 and approach.half_opening == pytest.approx(cell.grasp_opening(box, alone), abs=0.004)
+    assert approach.tips == pytest.approx(0.03 - GRIP_DEPTH, abs=0.002)  # the full grip depth
     crowded = _depth_of_blocks([part, (0.03, 0.06, -0.06, 0.06, 0.07)])
-    yaw, half = cell.grasp_yaw(box, crowded, True, "smallest_turn")
-    assert abs(np.degrees(yaw)) >= 75 and half < 0.03
-    assert cell.grasp_yaw(box, crowded, True, order="narrowest")[0] == yaw  # only about a quarter turn is clear
+    approach = cell.grasp_yaw(box, crowded, True, "smallest_turn")
+    assert abs(np.degrees(approach.yaw)) >= 75 and approach.half_opening < 0.03
+    assert cell.grasp_yaw(box, crowded, True, order="narrowest").yaw == approach.yaw  # only ~a quarter turn is clear
     with pytest.raises(ValueError, match="yaw order"):
         cell.grasp_yaw(box, crowded, True, order="widest")
+
+
+def test_the_finger_tips_stop_above_the_part_the_named_one_rests_on(cell):
+    """A 3 x 3 cm part 2 cm high on an 8 x 8 cm block 5 cm high: the tips go below the part's top only as far as
+    the block lets them (2 mm above it), which is deeper than the rule's 8 mm, so the rule's yaw stays clear."""
+    from hrc_lab.env.robot.clutter_cell import TIP_CLEARANCE
+
+    corners = SPEC.project(np.array([[-0.015, 0.015, 0.07], [0.015, -0.015, 0.07]]))
+    box = np.array([*corners[0], *corners[1]], dtype=np.float32)
+    stacked = _depth_of_blocks([(-0.04, 0.04, -0.04, 0.04, 0.05), (-0.015, 0.015, -0.015, 0.015, 0.07)])
+    approach = cell.grasp_yaw(box, stacked, True, "smallest_turn")
+    assert approach.yaw == 0.0
+    assert approach.tips == pytest.approx(0.05 + TIP_CLEARANCE, abs=0.002)
+    assert approach.tips < 0.07 - SPEC.grasp_depth
 
 
 def oracle_nodes(now):

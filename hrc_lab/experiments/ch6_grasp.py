@@ -287,6 +287,7 @@ def table_6_2_robot(ctx: RunContext) -> dict[str, float]:
                                  "iterations": len(episode.steps)})
                 steps += [{"objects": count, "scene": k, "iteration": i, "action": s.action, "right": s.right,
                            "cause": s.cause, "held": s.held or "", "disturbed": s.disturbed, "yaw_deg": s.yaw_deg,
+                           "grip_mm": s.grip_mm,
                            "requests": " | ".join(" ".join(r) for r in s.requests),
                            "solutions": " | ".join(" ".join(w) for w in s.solutions),
                            **{f"{phase}_ms": 1000 * v for phase, v in s.seconds.items()}}

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hrc_lab.env.robot.clutter_cell import ASIDE, TRAY, ClutterCell
+from hrc_lab.env.robot.clutter_cell import ASIDE, TRAY, Approach, ClutterCell
 from hrc_lab.grasp.diagnostics import failure_cause
 from hrc_lab.grasp.iterative import iterate
 from hrc_lab.grasp.observation import SceneNodes
@@ -48,6 +48,7 @@ class RobotStep:
     held: str | None = None  # the type of the part that rose with the gripper
     disturbed: int = 0  # neighbours (parts other than the named one) the grasp moved by more than DISTURBED
     yaw_deg: float = 0.0  # the grasp's approach yaw (0: the rule's fingers closing along x)
+    grip_mm: float = 0.0  # how far below the part's top the finger tips went
     seconds: dict[str, float] = field(default_factory=dict)  # render, detection, reasoning, motion (0: no grasp)
 
 
@@ -108,12 +109,14 @@ def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[o
                                 or "other")
         before = cell.part_poses()[0]
         box = nodes.boxes[answer.grasp]
+        point = cell.locate(box, now.depth)
         if choose_yaw:
-            yaw, half_opening = cell.grasp_yaw(box, now.depth, preshape, yaw_order)
+            approach = cell.grasp_yaw(box, now.depth, preshape, yaw_order)
         else:
-            yaw, half_opening = 0.0, cell.grasp_opening(box, now.depth) if preshape else None
-        step.yaw_deg = float(np.degrees(yaw))
-        outcome = cell.pick(cell.locate(box, now.depth), half_opening, yaw)
+            approach = Approach(0.0, cell.grasp_opening(box, now.depth) if preshape else None, cell.tips_for(point))
+        step.yaw_deg = float(np.degrees(approach.yaw))
+        step.grip_mm = float(1000 * (point[2] - approach.tips))
+        outcome = cell.pick(point, approach.half_opening, approach.yaw, approach.tips)
         moved = np.linalg.norm(cell.part_poses()[0] - before, axis=1)
         named = shown[nodes.truth[answer.grasp]] if nodes.truth[answer.grasp] >= 0 else None  # the part it aimed at
         step.disturbed = int(sum(moved[j] > DISTURBED for j in outcome.touched if j != named))

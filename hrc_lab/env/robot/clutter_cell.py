@@ -97,6 +97,17 @@ class PickOutcome:
     steps: int = 0
 
 
+@dataclass
+class Approach:
+    """How the gripper comes down on a part (:meth:`ClutterCell.grasp_yaw`): ``yaw`` (rad about the vertical from the
+    rule's fingers closing along x), ``half_opening`` (m, None: fully open) and the finger tips' height ``tips``
+    (m, scene frame)."""
+
+    yaw: float
+    half_opening: float | None
+    tips: float
+
+
 class ClutterCell(ManipulationEnv):
     """See the module docstring. ``spec``: the clutter spec the scenes come from."""
 
@@ -254,20 +265,23 @@ class ClutterCell(ManipulationEnv):
             self._openings = (commands, np.asarray(halves))
         return self._openings
 
-    def grasp_yaw(self, box: np.ndarray, depth: np.ndarray, preshape: bool,
-                  order: str) -> tuple[float, float | None]:
-        """(yaw, half opening): the approach yaw (rad about the vertical, 0 the rule's fingers closing along x) whose
-        finger volumes (:data:`FINGER_ZONES`, either side of the grasp point along the closing axis, from the pads'
-        inner faces out) the depth image shows clearest of neighbours, and the pre-grasp half opening at it (the
-        part's top face's extent along the closing axis plus the rule's ``finger_gap`` and :data:`PRESHAPE_MARGIN`;
-        None with ``preshape`` off: fully open). Of the :data:`YAW_CANDIDATES` yaws, those in which nothing rises
-        into a finger volume win, in ``order`` (:data:`YAW_ORDERS`): ``narrowest``, the narrowest opening (so the
-        pads face the part's sides), then the smallest turn; ``smallest_turn``, the smallest turn (the rule's yaw
-        whenever it is clear); when none is clear, the one in which the highest intrusion is lowest."""
+    def grasp_yaw(self, box: np.ndarray, depth: np.ndarray, preshape: bool, order: str) -> Approach:
+        """The approach yaw (rad about the vertical, 0 the rule's fingers closing along x) whose finger volumes
+        (:data:`FINGER_ZONES`, either side of the grasp point along the closing axis, from the pads' inner faces out)
+        the depth image shows clearest of neighbours, the pre-grasp half opening at it (the part's top face's extent
+        along the closing axis plus the rule's ``finger_gap`` and :data:`PRESHAPE_MARGIN`; None with ``preshape``
+        off: fully open) and the finger tips' height. At each yaw the tips may go down to ``grip_depth`` below the
+        part's top, but stop :data:`TIP_CLEARANCE` above the highest point a finger volume holds (a part the named
+        one rests on, a neighbour's top); a yaw is clear when that still lets them reach the rule's ``grasp_depth``.
+        Of the :data:`YAW_CANDIDATES` yaws, the clear ones win, in ``order`` (:data:`YAW_ORDERS`): ``narrowest``, the
+        narrowest opening (so the pads face the part's sides), then the smallest turn; ``smallest_turn``, the
+        smallest turn (the rule's yaw whenever it is clear); when none is clear, the one in which the highest
+        intrusion is lowest, its tips at the rule's depth."""
         if order not in YAW_ORDERS:
             raise ValueError(f"yaw order must be one of {YAW_ORDERS}, got '{order}'")
         point = self.locate(box, depth)
-        tips = self._tips(point)
+        deepest = self.tips_for(point)
+        rule_tips = max(deepest, float(point[2]) - self.spec.grasp_depth)  # the rule's depth (or grip_depth if less)
         rows, cols = np.indices(depth.shape)
         cloud = self.spec.unproject(np.stack([cols + 0.5, rows + 0.5], axis=-1), depth)
         offsets, heights = cloud[..., :2] - point[:2], cloud[..., 2]
@@ -286,24 +300,27 @@ class ClutterCell(ManipulationEnv):
             if preshape and half > widest:
                 continue
             half = half if preshape else widest
-            intrusion = -np.inf  # how far the highest point in a finger volume rises above the volume's bottom
+            floor = deepest  # the lowest the tips may go at this yaw: clear of what the finger volumes hold
             for reach, rise in FINGER_ZONES:
                 zone = (across <= FINGER_HALF_WIDTH) & (along >= half) & (along <= half + reach)
                 if zone.any():
-                    intrusion = max(intrusion, float(heights[zone].max()) - (tips + rise))
+                    floor = max(floor, float(heights[zone].max()) - rise + TIP_CLEARANCE)
+            intrusion = floor - rule_tips  # > 0: not clear even at the rule's depth
             narrowness = round(half / NARROWEST_BIN) if order == "narrowest" else 0
             key = (max(intrusion, 0.0), narrowness, abs(yaw))
             if best is None or key < best[0]:
-                best = (key, yaw, half if preshape else None)
+                best = (key, Approach(yaw, half if preshape else None, min(floor, rule_tips)))
         if best is None:  # the part is wider than the gripper opens at every yaw
-            return 0.0, None
-        return best[1], best[2]
+            return Approach(0.0, None, deepest)
+        return best[1]
 
-    def pick(self, point: np.ndarray, half_opening: float | None = None, yaw: float = 0.0) -> PickOutcome:
+    def pick(self, point: np.ndarray, half_opening: float | None = None, yaw: float = 0.0,
+             tips: float | None = None) -> PickOutcome:
         """Open (fully, or with ``half_opening`` to the command whose measured half opening is the smallest at least
         that wide, :meth:`finger_openings`), turn the gripper ``yaw`` (rad about the vertical) from its home, come
-        down on ``point`` (scene frame, the part's top) from above, close, lift; from the observation pose and back
-        to it with the part (the gripper turns home when :meth:`put` has let go)."""
+        down on ``point`` (scene frame, the part's top) from above until the finger tips are at height ``tips``
+        (default ``grip_depth`` below the point, :meth:`grasp_yaw` gives one per yaw), close, lift; from the
+        observation pose and back to it with the part (the gripper turns home when :meth:`put` has let go)."""
         self._yaw = float(yaw)
         open_grip = -1.0
         if half_opening is not None:
@@ -316,7 +333,7 @@ class ClutterCell(ManipulationEnv):
         point = np.asarray(point, dtype=float)
         before = self.part_poses()[0][:, 2]
         touched: set[int] = set()
-        grasp = np.array([*point[:2], self._tips(point) + self._tip_below_site])
+        grasp = np.array([*point[:2], (self.tips_for(point) if tips is None else tips) + self._tip_below_site])
         self._hold(grasp + [0, 0, APPROACH], grip=open_grip)
         self._hold(grasp, grip=open_grip, touched=touched)
         self._hold(grasp, grip=1.0, steps=GRIP_STEPS, touched=touched)
@@ -347,7 +364,7 @@ class ClutterCell(ManipulationEnv):
             snapped[row, column] = np.sign(home[row, column])
         return snapped
 
-    def _tips(self, point: np.ndarray) -> float:
+    def tips_for(self, point: np.ndarray) -> float:
         """The finger tips' height for a grasp at ``point`` (the part's top): ``grip_depth`` below it, no lower
         than :data:`TIP_CLEARANCE`."""
         return max(float(point[2]) - self.grip_depth, TIP_CLEARANCE)
