@@ -48,8 +48,9 @@ def _grip(runs: pd.DataFrame) -> str:
     """How deep below the part's top the finger tips go (``protocol.grip_depth``)."""
     value = setting(runs, "protocol.grip_depth")
     if value == NOT_LOGGED:
-        return ("the finger tips 8 mm below the part's top, the rule's `env.grasp_depth` (runs before "
-                "`protocol.grip_depth`)")
+        return ("the finger tips 8 mm below the part's top, the rule's `env.grasp_depth`, the gripper tilted 2.6 "
+                "degrees (runs before `protocol.grip_depth`; in them a grasp that only pushed the named part counts "
+                "as a collision)")
     return f"the finger tips {float(value) * 1000:g} mm below the part's top (`protocol.grip_depth`)"
 
 
