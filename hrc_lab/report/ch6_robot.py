@@ -51,7 +51,8 @@ def _grip(runs: pd.DataFrame) -> str:
         return ("the finger tips 8 mm below the part's top, the rule's `env.grasp_depth`, the gripper tilted 2.6 "
                 "degrees (runs before `protocol.grip_depth`; in them a grasp that only pushed the named part counts "
                 "as a collision)")
-    return f"the finger tips {float(value) * 1000:g} mm below the part's top (`protocol.grip_depth`)"
+    return (f"the finger tips up to {float(value) * 1000:g} mm below the part's top (`protocol.grip_depth`), 2 mm "
+            "above whatever the depth image shows in the fingers' way")
 
 
 @register_section("table_6_2_robot")
