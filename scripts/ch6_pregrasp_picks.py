@@ -16,7 +16,7 @@ import numpy as np
 from hrc_lab.env.clutter.rule import graspable
 from hrc_lab.env.clutter.scenes import generate_scene
 from hrc_lab.env.clutter.spec import ClutterSpec
-from hrc_lab.env.robot.clutter_cell import Approach, ClutterCell
+from hrc_lab.env.robot.clutter_cell import ClutterCell
 from hrc_lab.experiments.schemas import Table62RobotProtocol
 from hrc_lab.grasp.robot_grasping import DISTURBED
 
@@ -50,13 +50,8 @@ def main() -> None:
                     continue
                 box = now.objects[shown.index(part)].box
                 before = cell.part_poses()[0].copy()
-                point = cell.locate(box, now.depth)
-                if choose_yaw:
-                    approach = cell.grasp_yaw(box, now.depth, preshape, robot_row.yaw_order)
-                else:
-                    approach = Approach(0.0, cell.grasp_opening(box, now.depth) if preshape else None,
-                                        cell.tips_for(point))
-                outcome = cell.pick(point, approach.half_opening, approach.yaw, approach.tips)
+                approach = cell.approach(box, now.depth, preshape, choose_yaw, robot_row.yaw_order)
+                outcome = cell.pick(cell.locate(box, now.depth), approach.half_opening, approach.yaw, approach.tips)
                 moved = np.linalg.norm(cell.part_poses()[0] - before, axis=1)
                 others = [j for j in range(len(moved)) if j not in (part, outcome.held)]
                 picks[way].append((outcome.held == part, any(moved[j] > DISTURBED for j in others)))

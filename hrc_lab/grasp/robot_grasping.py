@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hrc_lab.env.robot.clutter_cell import ASIDE, TRAY, Approach, ClutterCell
+from hrc_lab.env.robot.clutter_cell import ASIDE, TRAY, ClutterCell
 from hrc_lab.grasp.diagnostics import failure_cause
 from hrc_lab.grasp.iterative import iterate
 from hrc_lab.grasp.observation import SceneNodes
@@ -110,10 +110,7 @@ def run_episode(cell: ClutterCell, scene, spec, goal: str, perceive: Callable[[o
         before = cell.part_poses()[0]
         box = nodes.boxes[answer.grasp]
         point = cell.locate(box, now.depth)
-        if choose_yaw:
-            approach = cell.grasp_yaw(box, now.depth, preshape, yaw_order)
-        else:
-            approach = Approach(0.0, cell.grasp_opening(box, now.depth) if preshape else None, cell.tips_for(point))
+        approach = cell.approach(box, now.depth, preshape, choose_yaw, yaw_order)
         step.yaw_deg = float(np.degrees(approach.yaw))
         step.grip_mm = float(1000 * (point[2] - approach.tips))
         outcome = cell.pick(point, approach.half_opening, approach.yaw, approach.tips)

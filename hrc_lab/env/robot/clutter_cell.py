@@ -314,6 +314,15 @@ class ClutterCell(ManipulationEnv):
             return Approach(0.0, None, deepest)
         return best[1]
 
+    def approach(self, box: np.ndarray, depth: np.ndarray, preshape: bool, choose_yaw: bool, order: str) -> Approach:
+        """How to come down on a detected box: :meth:`grasp_yaw` with ``choose_yaw`` (the clear yaws ranked by
+        ``order``), else the rule's yaw with the pre-grasp opening (:meth:`grasp_opening`, or fully open without
+        ``preshape``) and the tips ``grip_depth`` below the part's top."""
+        if choose_yaw:
+            return self.grasp_yaw(box, depth, preshape, order)
+        return Approach(0.0, self.grasp_opening(box, depth) if preshape else None,
+                        self.tips_for(self.locate(box, depth)))
+
     def pick(self, point: np.ndarray, half_opening: float | None = None, yaw: float = 0.0,
              tips: float | None = None) -> PickOutcome:
         """Open (fully, or with ``half_opening`` to the command whose measured half opening is the smallest at least
