@@ -17,13 +17,16 @@ from hrc_lab.data.files import DataFileError, load_torch, load_weights
 from hrc_lab.env.clutter.spec import ClutterScene
 from hrc_lab.grasp.configs import DetectorConfig
 from hrc_lab.grasp.detector import ObjectDetector
+from hrc_lab.kernels import cpu_kernels
 
 
 def detector_cache_key(cfg: DetectorConfig, classes: Sequence[str], scene_seeds: Sequence[int]) -> str:
-    """A short hash of the config, the classes and the (ordered) seeds of the training scenes."""
+    """A short hash of the config, the classes, the (ordered) seeds of the training scenes and the CPU kernels
+    (:func:`hrc_lab.kernels.cpu_kernels`: other kernels train other weights)."""
     # oracle and trained modes, with or without context features, share the network
     settings = {k: v for k, v in asdict(cfg).items() if k not in ("mode", "context_scale")}
-    return cache_key({"cfg": settings, "classes": list(classes), "seeds": [int(s) for s in scene_seeds]}, length=16)
+    return cache_key({"cfg": settings, "classes": list(classes), "seeds": [int(s) for s in scene_seeds],
+                      "kernels": cpu_kernels()}, length=16)
 
 
 def load_or_train_detector(cfg: DetectorConfig, classes: Sequence[str], scenes: Sequence[ClutterScene],

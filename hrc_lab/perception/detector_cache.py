@@ -14,6 +14,7 @@ import torch
 
 from hrc_lab.cache import cache_key, cached
 from hrc_lab.data.files import load_torch, load_weights
+from hrc_lab.kernels import cpu_kernels
 from hrc_lab.perception.action_detector import ActionDetector, action_windows
 from hrc_lab.perception.configs import PERCEPTIONS, ActionDetectorConfig
 from hrc_lab.perception.dataset import ActionSet
@@ -31,8 +32,9 @@ def load_or_train_action_detector(cfg: ActionDetectorConfig, data: ActionSet, da
                                   cache_dir: str | os.PathLike) -> ActionDetector:
     """The detector :func:`train_action_detector` gives on ``data`` (whose :func:`action_set_key
     <hrc_lab.perception.dataset.action_set_key>` is ``data_key``), in eval mode: from ``<cache_dir>/detector_<key>.pt``
-    when another job already trained it, else trained and saved there (parallel jobs wait for the first)."""
-    key = cache_key({"data": data_key, "perception": asdict(cfg)})
+    when another job already trained it with the same CPU kernels (:mod:`hrc_lab.kernels`), else trained and saved
+    there (parallel jobs wait for the first)."""
+    key = cache_key({"data": data_key, "perception": asdict(cfg), "kernels": cpu_kernels()})
 
     def build(path: Path) -> None:
         detector = train_action_detector(cfg, data, seed, trainer_factory)
