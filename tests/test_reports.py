@@ -476,6 +476,7 @@ def test_table_6_1_default_section_plots_the_oa_over_the_training_set_size(monke
                           run("gnn_att", 1, 1708, "v1", "protocol.train_images=1708"),
                           run("gcn_att", 0, 1708, "v2", "protocol.train_images=1708 grasp.steps=10")])
     monkeypatch.setattr(ch6_grasp, "fetch_runs", lambda uri, experiment, variant: every)
+    monkeypatch.setattr(ch6_grasp, "finished_runs", lambda uri, experiment: every)
     section = SECTIONS["table_6_1"](every[every.variant == "default"])
     assert "training_images.png" in section.figures
     table = section.markdown.split("Over the number of training images")[1]
@@ -484,6 +485,31 @@ def test_table_6_1_default_section_plots_the_oa_over_the_training_set_size(monke
     assert "GCN_Att" not in table  # its 1708-image run has another override too
     ablation = SECTIONS["table_6_1"](every[every.variant == "v1"])
     assert "Over the number of training images" not in ablation.markdown
+
+
+def test_table_6_1_default_section_measures_how_far_other_cpu_kernels_move_a_cell(monkeypatch):
+    """Default runs of one method and seed under two ``cpu_kernels`` settings (no tag: before the pinning) are
+    paired; a seed run under one setting only stays out, and without a pair the section says nothing."""
+    from hrc_lab.report import ch6_grasp
+
+    load_sections()
+
+    def run(seed, kernels, oa):
+        return {"method": "gnn_att", "seed": seed, "cell": "clutter", "run_id": f"{seed}{kernels}",
+                "variant": "default", "variant_overrides": "", "experiment": "ch6/table_6_1",
+                "param.logger.tracking_uri": "sqlite:///unused.db", "cpu_kernels": kernels,
+                **{f"oa_{k}": oa + k / 100 for k in (1, 2, 3)}, "train_grasp_acc": 1.0}
+
+    every = pd.DataFrame([run(0, "PINNED", 0.80), run(1, "PINNED", 0.84),  # newest first
+                          run(0, None, 0.78), run(1, None, 0.88), run(2, None, 0.90)])
+    monkeypatch.setattr(ch6_grasp, "fetch_runs", lambda uri, experiment, variant: every.iloc[:0])
+    monkeypatch.setattr(ch6_grasp, "finished_runs", lambda uri, experiment: every)
+    markdown = re.sub(r" +", " ", SECTIONS["table_6_1"](every.iloc[:2]).markdown)
+    assert "the 6 cells (seed x request size) moved by 0.030 on average, at most 0.040" in markdown
+    assert f"| GNN_Att (ours) | {ch6_grasp.KERNELS_BEFORE} | 0, 1 | 0.840 ± 0.050 |" in markdown
+    assert "| GNN_Att (ours) | PINNED | 0, 1 | 0.830 ± 0.020 |" in markdown
+    monkeypatch.setattr(ch6_grasp, "finished_runs", lambda uri, experiment: every.iloc[:2])
+    assert "other CPU kernels" not in SECTIONS["table_6_1"](every.iloc[:2]).markdown
 
 
 def test_table_6_2_section_gives_the_failure_causes_and_answer_lengths(monkeypatch):

@@ -21,6 +21,7 @@ from hrc_lab.report.runs import (  # noqa: E402
     DEFAULT_VARIANT,
     amount,
     fetch_runs,
+    finished_runs,
     histories,
     keyed,
     over_seeds,
@@ -93,6 +94,9 @@ def table_6_1(runs: pd.DataFrame) -> Section:
         text += ["", "Over the number of training images (this section's runs and those of the sections whose only "
                  "override is `protocol.train_images`; mean ± std over seeds, OA for one / two / three requested "
                  "types; generated scenes are free, the thesis trained on 427):", "", markdown_table(table)]
+    kernels = _kernel_paths(runs)
+    if kernels:
+        text += ["", *kernels]
     ours = runs[runs.method == "gnn_att"]
     artifacts = {}
     if len(ours) and "geometry_blockers_within_filter" in ours:
@@ -146,6 +150,56 @@ def _training_set_sizes(runs: pd.DataFrame):
     ax.legend(fontsize=6)
     fig.tight_layout()
     return pd.DataFrame(rows).fillna("–"), fig
+
+
+KERNELS_BEFORE = "the machine's widest (before hrc_lab.kernels)"
+
+
+def _kernel_paths(runs: pd.DataFrame) -> list[str]:
+    """For the default section: how far a cell moves when only the CPU kernels change. Every finished default run
+    in the same store, by its ``cpu_kernels`` tag (:mod:`hrc_lab.kernels`; runs without it predate the pinning and
+    used the widest paths of their machine): for each method and seed run under two settings, the OA per request
+    size under each and the cells' differences, beside the seeds' spread. Empty when no method has such a pair."""
+    uri = f"{PARAM_PREFIX}logger.tracking_uri"
+    if set(runs.get("variant", [])) != {DEFAULT_VARIANT} or not {uri, "experiment"} <= set(runs):
+        return []
+    every = finished_runs(runs[uri].iloc[0], runs["experiment"].iloc[0])
+    if every.empty:
+        return []
+    every = every[every["variant"] == DEFAULT_VARIANT]
+    every = every.assign(kernels=every.get("cpu_kernels", pd.Series(index=every.index, dtype=object))
+                         .fillna(KERNELS_BEFORE))
+    every = every.drop_duplicates(["method", "seed", "kernels"], keep="first")  # newest first
+    cells, titles = [f"oa_{n}" for n in REQUEST_SIZES], [title for _, title in COLUMNS[1:]]
+    rows, moved = [], []
+    for method in METHODS:
+        mine = every[every.method == method]
+        settings = list(dict.fromkeys(mine.kernels))
+        if len(settings) < 2:
+            continue
+        new, old = settings[0], settings[1]  # the newest setting, and the one before it
+        seeds = sorted(set(mine[mine.kernels == new].seed) & set(mine[mine.kernels == old].seed))
+        if not seeds:
+            continue
+        pair = {k: mine[(mine.kernels == k) & mine.seed.isin(seeds)].set_index("seed").sort_index()[cells]
+                for k in (new, old)}
+        for k in (old, new):
+            rows.append({"method": METHODS[method], "kernels": k, "seeds": ", ".join(map(str, seeds)),
+                         **{title: fmt(*spread(pair[k], c), 3) for c, title in zip(cells, titles)}})
+        delta = (pair[new] - pair[old]).abs().to_numpy().ravel()
+        seed_std = max(float(pair[k][c].std(ddof=0)) for k in (new, old) for c in cells)
+        moved.append(f"{METHODS[method]}: the {len(delta)} cells (seed x request size) moved by {delta.mean():.3f} "
+                     f"on average, at most {delta.max():.3f}; the seeds' largest std in a column is {seed_std:.3f}")
+    if not rows:
+        return []
+    return ["The same runs under other CPU kernels (tag `cpu_kernels` of each default run in this store; since "
+            "`hrc_lab.kernels` every run computes with oneDNN, MKL and ATen pinned to AVX2, the paths an AVX2-only "
+            "CPU takes, so that a result trains to the same weights on other machines; before it, each library took "
+            "the widest path of the machine, AVX-512 here). Nothing else differs, so the differences are what a "
+            "change of kernel paths does to a cell, i.e. what running on another CPU did before the pinning "
+            "([which paths change the detector's weights](ch6_grasp/cpu_kernels.md), "
+            "`scripts/cpu_kernel_paths.py`):", "", markdown_table(pd.DataFrame(rows)), "",
+            *(f"- {line}." for line in moved)]
 
 
 def _pooled(runs: pd.DataFrame, stem: str) -> pd.Series:
