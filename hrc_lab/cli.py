@@ -27,7 +27,6 @@ from omegaconf import DictConfig
 
 from hrc_lab.config import LOGGERS, ConfigError, ValidatedConfig, validate_config
 from hrc_lab.interrupts import RunInterrupted, exit_interrupted, signals_raise
-from hrc_lab.kernels import cpu_kernels
 from hrc_lab.run_naming import CONF_DIR, is_optuna, job_tags, method_of, run_name
 
 log = logging.getLogger("hrc_lab")
@@ -96,7 +95,6 @@ def _run(cfg: DictConfig) -> dict[str, float]:
         "cell": validated.env.cell,
         "scenario": scenario,
         "seed": str(cfg.seed),
-        "cpu_kernels": cpu_kernels(),  # hrc_lab.kernels: the instruction sets the run's kernels used
         **job_tags(),
         **trial_tags(cfg, HydraConfig.get()),  # study, objective, search_keys under hydra/sweeper=optuna
     }

@@ -71,10 +71,13 @@ def stop_group(pid: int, start: str | None, timeout: float = 20) -> None:
 def machine_identity() -> dict[str, str]:
     """Tags that say what a job's wall times and float rounding depend on: the CPU (``cpu``: its model name and
     family/model/stepping as /proc/cpuinfo gives them), the cores this process may use, and the instruction set torch
-    dispatches its CPU kernels to (``cpu_capability``, e.g. AVX2 or AVX512): two machines of the same size can
-    differ several times in speed, and a job's numbers within their seed spread (docs/reproduce.md, "Wall times
+    dispatches its CPU kernels to (``cpu_capability``, e.g. AVX2 or AVX512), and the kernel settings in force
+    (``cpu_kernels``, :mod:`hrc_lab.kernels`): two machines of the same size can differ several times in speed,
+    and, with the kernels not pinned, a job's numbers within their seed spread (docs/reproduce.md, "Wall times
     depend on the machine")."""
     import torch
+
+    from hrc_lab.kernels import cpu_kernels
 
     fields: dict[str, str] = {}
     try:
@@ -88,4 +91,5 @@ def machine_identity() -> dict[str, str]:
         model, stepping = fields.get("model", "?"), fields.get("stepping", "?")
         name += f" (family {fields['cpu family']} model {model} stepping {stepping})"
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return {"cpu": name, "cpu_cores": str(cores), "cpu_capability": torch.backends.cpu.get_cpu_capability()}
+    return {"cpu": name, "cpu_cores": str(cores), "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+            "cpu_kernels": cpu_kernels()}

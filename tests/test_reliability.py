@@ -22,6 +22,7 @@ from torch.utils.data import TensorDataset
 from hrc_lab.cli import check_resumable
 from hrc_lab.config import LoggerConfig, validate_config
 from hrc_lab.interrupts import RunInterrupted, signals_raise
+from hrc_lab.kernels import cpu_kernels
 from hrc_lab.registry import ConfigError
 from hrc_lab.run_naming import run_name, variant_of
 from hrc_lab.runs_cli import stale
@@ -106,6 +107,7 @@ def test_an_exception_marks_the_run_failed(tmp_path):
     assert run.info.status == "FAILED"
     assert run.data.tags["cpu"] and int(run.data.tags["cpu_cores"]) >= 1  # what its wall times depend on
     assert run.data.tags["cpu_capability"] == torch.backends.cpu.get_cpu_capability()
+    assert run.data.tags["cpu_kernels"] == cpu_kernels()  # the kernel settings in force (hrc_lab.kernels)
 
 
 def test_stale_marks_runs_whose_process_is_gone(tmp_path):
