@@ -497,7 +497,8 @@ def test_table_6_1_default_section_measures_how_far_other_cpu_kernels_move_a_cel
     def run(seed, kernels, oa):
         return {"method": "gnn_att", "seed": seed, "cell": "clutter", "run_id": f"{seed}{kernels}",
                 "variant": "default", "variant_overrides": "", "experiment": "ch6/table_6_1",
-                "param.logger.tracking_uri": "sqlite:///unused.db", "cpu_kernels": kernels,
+                "param.logger.tracking_uri": "sqlite:///unused.db", "cpu_kernels": kernels, "cpu": "CPU X",
+                "cpu_capability": "AVX2" if kernels else "AVX512",
                 **{f"oa_{k}": oa + k / 100 for k in (1, 2, 3)}, "train_grasp_acc": 1.0}
 
     every = pd.DataFrame([run(0, "PINNED", 0.80), run(1, "PINNED", 0.84),  # newest first
@@ -506,6 +507,7 @@ def test_table_6_1_default_section_measures_how_far_other_cpu_kernels_move_a_cel
     monkeypatch.setattr(ch6_grasp, "finished_runs", lambda uri, experiment: every)
     markdown = re.sub(r" +", " ", SECTIONS["table_6_1"](every.iloc[:2]).markdown)
     assert "the 6 cells (seed x request size) moved by 0.030 on average, at most 0.040" in markdown
+    assert "widest paths of their CPU, here AVX512), same config and seeds, on CPU X." in markdown
     assert f"| GNN_Att (ours) | {ch6_grasp.KERNELS_BEFORE} | 0, 1 | 0.840 ± 0.050 |" in markdown
     assert "| GNN_Att (ours) | PINNED | 0, 1 | 0.830 ± 0.020 |" in markdown
     monkeypatch.setattr(ch6_grasp, "finished_runs", lambda uri, experiment: every.iloc[:2])

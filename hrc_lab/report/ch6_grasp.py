@@ -171,7 +171,7 @@ def _kernel_paths(runs: pd.DataFrame) -> list[str]:
                          .fillna(KERNELS_BEFORE))
     every = every.drop_duplicates(["method", "seed", "kernels"], keep="first")  # newest first
     cells, titles = [f"oa_{n}" for n in REQUEST_SIZES], [title for _, title in COLUMNS[1:]]
-    rows, moved = [], []
+    rows, moved, paired = [], [], []
     for method in METHODS:
         mine = every[every.method == method]
         settings = list(dict.fromkeys(mine.kernels))
@@ -181,25 +181,31 @@ def _kernel_paths(runs: pd.DataFrame) -> list[str]:
         seeds = sorted(set(mine[mine.kernels == new].seed) & set(mine[mine.kernels == old].seed))
         if not seeds:
             continue
-        pair = {k: mine[(mine.kernels == k) & mine.seed.isin(seeds)].set_index("seed").sort_index()[cells]
-                for k in (new, old)}
-        for k in (old, new):
+        runs_of = {k: mine[(mine.kernels == k) & mine.seed.isin(seeds)].set_index("seed").sort_index()
+                   for k in (new, old)}
+        paired += [runs_of[new], runs_of[old]]
+        for k in (new, old):
             rows.append({"method": METHODS[method], "kernels": k, "seeds": ", ".join(map(str, seeds)),
-                         **{title: fmt(*spread(pair[k], c), 3) for c, title in zip(cells, titles)}})
-        delta = (pair[new] - pair[old]).abs().to_numpy().ravel()
-        seed_std = max(float(pair[k][c].std(ddof=0)) for k in (new, old) for c in cells)
+                         **{title: fmt(*spread(runs_of[k], c), 3) for c, title in zip(cells, titles)}})
+        delta = (runs_of[new][cells] - runs_of[old][cells]).abs().to_numpy().ravel()
+        seed_std = max(float(runs_of[k][c].std(ddof=0)) for k in (new, old) for c in cells)
         moved.append(f"{METHODS[method]}: the {len(delta)} cells (seed x request size) moved by {delta.mean():.3f} "
                      f"on average, at most {delta.max():.3f}; the seeds' largest std in a column is {seed_std:.3f}")
     if not rows:
         return []
-    return ["The same runs under other CPU kernels (tag `cpu_kernels` of each default run in this store; since "
-            "`hrc_lab.kernels` every run computes with oneDNN, MKL and ATen pinned to AVX2, the paths an AVX2-only "
-            "CPU takes, so that a result trains to the same weights on other machines; before it, each library took "
-            "the widest path of the machine, AVX-512 here). Nothing else differs, so the differences are what a "
-            "change of kernel paths does to a cell, i.e. what running on another CPU did before the pinning "
-            "([which paths change the detector's weights](ch6_grasp/cpu_kernels.md), "
-            "`scripts/cpu_kernel_paths.py`):", "", markdown_table(pd.DataFrame(rows)), "",
-            *(f"- {line}." for line in moved)]
+    both = pd.concat(paired)
+    machines = ", ".join(sorted(set(both.get("cpu", pd.Series(dtype=object)).dropna()))) or "machines not logged"
+    widest = ", ".join(sorted(set(both.loc[both.kernels == KERNELS_BEFORE].get("cpu_capability",
+                                                                              pd.Series(dtype=object)).dropna())))
+    return ["Other CPU kernels, same cells: the methods run under two kernel settings (tag `cpu_kernels`; since "
+            "`hrc_lab.kernels` oneDNN, MKL and ATen are pinned to AVX2, the paths an AVX2-only CPU takes, so that "
+            "a network trains to the same weights on other CPUs; runs without the tag predate the pinning and took "
+            f"the widest paths of their CPU{f', here {widest}' if widest else ''}), same config and seeds, on "
+            f"{machines}. The differences are what a change of kernel paths does to a cell, i.e. how far a cell "
+            "moved between two CPUs before the pinning "
+            "([which paths change the detector's weights](ch6_grasp/cpu_kernels.md), `scripts/cpu_kernel_paths.py`). "
+            "The table above reads each method's newest runs, the first setting of its pair:", "",
+            markdown_table(pd.DataFrame(rows)), "", *(f"- {line}." for line in moved)]
 
 
 def _pooled(runs: pd.DataFrame, stem: str) -> pd.Series:
