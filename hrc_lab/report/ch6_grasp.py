@@ -186,7 +186,8 @@ def _kernel_paths(runs: pd.DataFrame) -> list[str]:
         paired += [runs_of[new], runs_of[old]]
         for k in (new, old):
             rows.append({"method": METHODS[method], "kernels": k, "seeds": ", ".join(map(str, seeds)),
-                         **{title: fmt(*spread(runs_of[k], c), 3) for c, title in zip(cells, titles)}})
+                         **{title: fmt(*spread(runs_of[k], c), 3) for c, title in zip(cells, titles)},
+                         "detector recall": fmt(*spread(runs_of[k], "detector_recall"), 3)})
         delta = (runs_of[new][cells] - runs_of[old][cells]).abs().to_numpy().ravel()
         seed_std = max(float(runs_of[k][c].std(ddof=0)) for k in (new, old) for c in cells)
         moved.append(f"{METHODS[method]}: the {len(delta)} cells (seed x request size) moved by {delta.mean():.3f} "
@@ -204,7 +205,9 @@ def _kernel_paths(runs: pd.DataFrame) -> list[str]:
             f"{machines}. The differences are what a change of kernel paths does to a cell, i.e. how far a cell "
             "moved between two CPUs before the pinning "
             "([which paths change the detector's weights](ch6_grasp/cpu_kernels.md), `scripts/cpu_kernel_paths.py`). "
-            "The table above reads each method's newest runs, the first setting of its pair:", "",
+            "The detector is trained once for every seed of a run (`grasp.detector.seed`), so the seeds' spread "
+            "leaves its training out; other kernels retrain it, as a new detector seed would. The table above reads "
+            "each method's newest runs, the first setting of its pair:", "",
             markdown_table(pd.DataFrame(rows)), "", *(f"- {line}." for line in moved)]
 
 
