@@ -171,7 +171,7 @@ def _kernel_paths(runs: pd.DataFrame) -> list[str]:
                          .fillna(KERNELS_BEFORE))
     every = every.drop_duplicates(["method", "seed", "kernels"], keep="first")  # newest first
     cells, titles = [f"oa_{n}" for n in REQUEST_SIZES], [title for _, title in COLUMNS[1:]]
-    rows, moved, paired = [], [], []
+    rows, moved, paired, cell_moves = [], [], [], []
     for method in METHODS:
         mine = every[every.method == method]
         settings = list(dict.fromkeys(mine.kernels))
@@ -188,6 +188,9 @@ def _kernel_paths(runs: pd.DataFrame) -> list[str]:
             rows.append({"method": METHODS[method], "kernels": k, "seeds": ", ".join(map(str, seeds)),
                          **{title: fmt(*spread(runs_of[k], c), 3) for c, title in zip(cells, titles)},
                          "detector recall": fmt(*spread(runs_of[k], "detector_recall"), 3)})
+        for c in cells:  # the table's cells: means over seeds, each with its two stds (hrc-lab-reproduce --check)
+            (m_new, s_new), (m_old, s_old) = spread(runs_of[new], c), spread(runs_of[old], c)
+            cell_moves.append((abs(m_new - m_old), max(s_new, s_old)))
         delta = (runs_of[new][cells] - runs_of[old][cells]).abs().to_numpy().ravel()
         seed_std = max(float(runs_of[k][c].std(ddof=0)) for k in (new, old) for c in cells)
         moved.append(f"{METHODS[method]}: the {len(delta)} cells (seed x request size) moved by {delta.mean():.3f} "
@@ -208,7 +211,12 @@ def _kernel_paths(runs: pd.DataFrame) -> list[str]:
             "The detector is trained once for every seed of a run (`grasp.detector.seed`), so the seeds' spread "
             "leaves its training out; other kernels retrain it, as a new detector seed would. The table above reads "
             "each method's newest runs, the first setting of its pair:", "",
-            markdown_table(pd.DataFrame(rows)), "", *(f"- {line}." for line in moved)]
+            markdown_table(pd.DataFrame(rows)), "", *(f"- {line}." for line in moved), "",
+            f"Of the {len(cell_moves)} cells of the table (a method's mean over seeds at one request size), "
+            f"{sum(d > s for d, s in cell_moves)} moved by more than the larger of their two seed stds (the "
+            f"criterion of `hrc-lab-reproduce --check`); the means moved by "
+            f"{sum(d for d, _ in cell_moves) / len(cell_moves):.3f} on average, at most "
+            f"{max(d for d, _ in cell_moves):.3f}."]
 
 
 def _pooled(runs: pd.DataFrame, stem: str) -> pd.Series:
