@@ -7,15 +7,16 @@ another), and the paths round differently. Training amplifies the last-bit diffe
 detector from the same seed ended at losses 2.028 (oneDNN at AVX-512, this project's 2-core AMD EPYC), 2.006 (oneDNN
 at AVX2) and 2.015 (MKL's COMPATIBLE path), three different sets of weights (``scripts/cpu_kernel_paths.py``).
 Pinning oneDNN and ATen to AVX2 and MKL to its AVX2 branch in strict mode (MKL's *conditional numerical
-reproducibility*) fixes the path; on that machine it cost nothing measurable (0.31-0.34 s per detector step either
-way).
+reproducibility*) fixes the path: it gives, bit for bit, the weights the libraries compute when capped at an
+AVX2-only CPU's instructions, and on that machine it cost nothing measurable (0.31-0.34 s per detector step either
+way). Measured on one machine by capping the libraries; two real machines were not compared.
 
 The settings are environment variables the libraries read at their first call, so :func:`pin_cpu_kernels` runs when
 ``hrc_lab`` is imported, before any kernel (``import hrc_lab`` first in a script or notebook of your own). A value
 already in the environment wins, and ``HRC_LAB_CPU_KERNELS=native`` pins nothing: the machine's widest kernels,
 its own numbers. Every MLflow run records what was in force (tag ``cpu_kernels``), and the trained-model caches key
-on it. Thread counts must match too (``num_threads``, 1 by default). Not pinned on
-other architectures (the settings name x86 instruction sets).
+on it. Thread counts must match too (``num_threads``, 1 by default). Not pinned on other architectures (the
+settings name x86 instruction sets).
 """
 
 from __future__ import annotations
