@@ -1,5 +1,5 @@
-"""The CPU kernels every hrc_lab process computes with, pinned to one instruction set so that a network trains to
-the same weights on any x86-64 CPU with AVX2, not only on the machine that made a report.
+"""The CPU kernels every hrc_lab process computes with, pinned to one instruction set so that a network can train
+to the same weights on other x86-64 CPUs with AVX2, not only on the machine that made a report.
 
 torch picks its CPU kernels at run time from the instructions the CPU has: oneDNN's convolutions, MKL's matrix
 products and ATen's element-wise ops each take the widest vector path available (AVX-512 on one machine, AVX2 on
