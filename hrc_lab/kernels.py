@@ -4,12 +4,12 @@ to the same weights on other x86-64 CPUs with AVX2, not only on the machine that
 torch picks its CPU kernels at run time from the instructions the CPU has: oneDNN's convolutions, MKL's matrix
 products and ATen's element-wise ops each take the widest vector path available (AVX-512 on one machine, AVX2 on
 another), and the paths round differently. Training amplifies the last-bit differences: 8 steps of the Ch.6
-detector from the same seed ended at losses 2.028 (oneDNN at AVX-512, this project's 2-core AMD EPYC), 2.006 (oneDNN
-at AVX2) and 2.015 (MKL's COMPATIBLE path), three different sets of weights (``scripts/cpu_kernel_paths.py``).
-Pinning oneDNN and ATen to AVX2 and MKL to its AVX2 branch in strict mode (MKL's *conditional numerical
-reproducibility*) fixes the path: it gives, bit for bit, the weights the libraries compute when capped at an
-AVX2-only CPU's instructions, and on that machine it cost nothing measurable (0.31-0.34 s per detector step either
-way). Measured on one machine by capping the libraries; two real machines were not compared.
+detector's own fit from the same seed gave four different sets of weights under this project's 2-core AMD EPYC's
+widest paths (AVX-512), an AVX2-only CPU's, an SSE4.1-only CPU's and MKL's COMPATIBLE branch
+(``scripts/cpu_kernel_paths.py``, ``reports/ch6_grasp/cpu_kernels.md``). Pinning oneDNN and ATen to AVX2 and MKL to
+its AVX2 branch in strict mode (MKL's *conditional numerical reproducibility*) fixes the path: it gives, bit for bit,
+the AVX2-only CPU's weights, and on that machine it cost nothing (0.18 s per detector step pinned, 0.21 s on the
+widest paths). Measured on one machine by capping the libraries; two real machines were not compared.
 
 The settings are environment variables the libraries read at their first call, so :func:`pin_cpu_kernels` runs when
 ``hrc_lab`` is imported, before any kernel (``import hrc_lab`` first in a script or notebook of your own). A value

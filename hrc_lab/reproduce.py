@@ -141,7 +141,7 @@ def print_summary(rows: list[tuple[str, float | None, str]], machine: dict[str, 
     """Each step's wall time and status, the total, and the machine they were measured on."""
     width = max([len("step")] + [len(name) for name, _, _ in rows])
     print(f"\nmachine: {machine['cpu']}, {machine['cpu_cores']} cores, torch kernels {machine['cpu_capability']} "
-          f"({machine.get('cpu_kernels', 'not pinned')})")
+          f"({machine['cpu_kernels']})")
     print(f"{'step':<{width}}  {'wall':>9}  status")
     for name, seconds, status in rows:
         print(f"{name:<{width}}  {_duration(seconds) if seconds is not None else '-':>9}  {status}")

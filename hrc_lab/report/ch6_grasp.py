@@ -188,11 +188,13 @@ def _kernel_paths(runs: pd.DataFrame) -> list[str]:
             rows.append({"method": METHODS[method], "kernels": k, "seeds": ", ".join(map(str, seeds)),
                          **{title: fmt(*spread(runs_of[k], c), 3) for c, title in zip(cells, titles)},
                          "detector recall": fmt(*spread(runs_of[k], "detector_recall"), 3)})
-        for c in cells:  # the table's cells: means over seeds, each with its two stds (hrc-lab-reproduce --check)
+        means = []  # the table's cells: means over seeds, each with its two stds (hrc-lab-reproduce --check)
+        for c in cells:
             (m_new, s_new), (m_old, s_old) = spread(runs_of[new], c), spread(runs_of[old], c)
-            cell_moves.append((abs(m_new - m_old), max(s_new, s_old)))
+            means.append((abs(m_new - m_old), max(s_new, s_old)))
+        cell_moves += means
         delta = (runs_of[new][cells] - runs_of[old][cells]).abs().to_numpy().ravel()
-        seed_std = max(float(runs_of[k][c].std(ddof=0)) for k in (new, old) for c in cells)
+        seed_std = max(std for _, std in means)
         moved.append(f"{METHODS[method]}: the {len(delta)} cells (seed x request size) moved by {delta.mean():.3f} "
                      f"on average, at most {delta.max():.3f}; the seeds' largest std in a column is {seed_std:.3f}")
     if not rows:
@@ -203,7 +205,7 @@ def _kernel_paths(runs: pd.DataFrame) -> list[str]:
                                                                               pd.Series(dtype=object)).dropna())))
     return ["Other CPU kernels, same cells: the methods run under two kernel settings (tag `cpu_kernels`; since "
             "`hrc_lab.kernels` oneDNN, MKL and ATen are pinned to AVX2, the paths an AVX2-only CPU takes, so that "
-            "a network trains to the same weights on other CPUs; runs without the tag predate the pinning and took "
+            "a network can train to the same weights on other CPUs; runs without the tag predate the pinning and took "
             f"the widest paths of their CPU{f', here {widest}' if widest else ''}), same config and seeds, on "
             f"{machines}. The differences are what a change of kernel paths does to a cell, i.e. how far a cell "
             "moved between two CPUs before the pinning "
