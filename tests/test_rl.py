@@ -35,7 +35,7 @@ from hrc_lab.rl.agent import (
 )
 from hrc_lab.rl.buffers import FilledHerReplayBuffer
 from hrc_lab.rl.configs import RLConfig
-from hrc_lab.rl.goal_env import make_goal_env, sparse_reward
+from hrc_lab.rl.goal_env import dense_reward, goal_differences, make_goal_env, sparse_reward
 from hrc_lab.rl.guidance import CorrectionGuide, GuidedEnv, corrected_action, needs_correction
 from hrc_lab.rl.normalization import CLIP, NormalizedCombinedExtractor, RunningNormalizer
 from hrc_lab.rl.reach import ReachGoalEnv, make_reach_env
@@ -129,6 +129,38 @@ def test_with_collision_fails_a_transition_after_a_collision_earns_minus_one(env
         env.collision_fails = False
     assert ddpg_her_kwargs(RLConfig(**TINY, collision_fails=True), env, 0)["replay_buffer_kwargs"]["copy_info_dict"]
     assert not ddpg_her_kwargs(RLConfig(**TINY), env, 0)["replay_buffer_kwargs"]["copy_info_dict"]
+
+
+def test_dense_reward_is_minus_the_summed_distances_and_success_stays_eq_3_6(env):
+    """rl.reward=dense (Fig. 3.12's text): R = -sum_k |P_obj - P_goal|, yaw wrapped as Eq. 3.6's; a collided
+    transition under rl.collision_fails earns at most -1; is_success is still Eq. 3.6's criterion."""
+    rng = np.random.default_rng(1)
+    desired = rng.uniform(-1, 1, (16, 8))
+    achieved = desired + rng.normal(scale=0.05, size=(16, 8))
+    achieved[:, 3] = desired[:, 3] + np.pi / 2  # a quarter turn of a square part: no yaw error
+    orders = np.array([4, 4])
+    expected = -np.linalg.norm(goal_differences(achieved, desired, 4, orders), axis=-1).sum(axis=-1)
+    np.testing.assert_allclose(dense_reward(achieved, desired, 4, orders), expected, rtol=1e-6)
+    assert np.linalg.norm(goal_differences(achieved, desired, 4, orders)[:, 0, 3]) < 1e-9
+    env.dense = True
+    try:
+        goals = np.zeros((2, 4), dtype=np.float32)
+        far = goals + np.array([0.3, 0.0, 0.0, 0.0], dtype=np.float32)
+        np.testing.assert_allclose(env.compute_reward(far, goals, {}), [-0.3, -0.3], rtol=1e-6)
+        env.collision_fails = True
+        np.testing.assert_allclose(env.compute_reward(far, goals, [{"collided": True}, {}]), [-1.0, -0.3], rtol=1e-6)
+        env.collision_fails = False
+        obs, _ = env.reset(seed=3)
+        obs, reward, _, _, info = env.step(np.zeros(4))
+        assert reward == pytest.approx(-env.goal_distances()[0], rel=1e-5) and info["is_success"] is False
+        env.cell.set_object_pose(1, env.cell.goals[1])  # blue at its goal: Eq. 3.6's success, R near 0
+        env.cell.sim.forward()
+        obs, reward, _, _, info = env.step(np.zeros(4))
+        assert info["is_success"] is True and -env.delta_r < reward < 0
+    finally:
+        env.dense, env.collision_fails = False, False
+    with pytest.raises(ValueError, match="rl.reward must be one of"):
+        RLConfig(reward="shaped")
 
 
 def test_goal_env_goal_is_the_labelled_objects_pose_and_the_step_reward_agrees(env):

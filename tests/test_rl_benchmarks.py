@@ -44,6 +44,11 @@ def test_the_wrapper_gives_the_loop_what_it_reads_from_a_goal_env():
     goals = np.stack([obs["achieved_goal"], obs["achieved_goal"]])
     assert list(env.compute_reward(goals, np.stack([obs["desired_goal"], obs["achieved_goal"]]), {})) == [reward, 0]
     env.close()
+    dense = make_fetch_env("FetchPush-v4", seed=0, reward="dense")  # rl.reward=dense: the env's own dense reward
+    obs, _ = dense.reset(seed=1)
+    obs, reward, _, _, info = dense.step(dense.action_space.sample())
+    assert reward == pytest.approx(-info["goal_distances"][0], rel=1e-5)
+    dense.close()
 
 
 # Budget measured here (2 cores shared with other jobs; success over 20 evaluation episodes after epochs 1, 2, 3 of 10

@@ -67,15 +67,16 @@ class FetchEnv(gym.Wrapper):
         return obs, reward, terminated, truncated, info
 
 
-def make_fetch_env(env_id: str, seed: int | None = None) -> FetchEnv:
+def make_fetch_env(env_id: str, seed: int | None = None, reward: str = "sparse") -> FetchEnv:
     """The gymnasium-robotics env ``env_id`` (one of :data:`FETCH_ENV_IDS`) inside :class:`FetchEnv`, its goals and
-    action space seeded with ``seed`` (None: unseeded)."""
+    action space seeded with ``seed`` (None: unseeded); ``reward`` (``rl.reward``) is its ``reward_type``, sparse
+    (the published curves') or dense (-|achieved - desired goal|)."""
     if env_id not in FETCH_ENV_IDS:
         raise ValueError(f"unknown Fetch env id '{env_id}'; choose one of {list(FETCH_ENV_IDS)}")
     import gymnasium_robotics
 
     gym.register_envs(gymnasium_robotics)
-    env = FetchEnv(gym.make(env_id))
+    env = FetchEnv(gym.make(env_id, reward_type=reward))
     env.reset(seed=seed)
     env.action_space.seed(seed)
     return env
@@ -89,11 +90,12 @@ class FetchFactory:
 
     env_id: str
     seed: int
+    reward: str = "sparse"
 
     def __call__(self, index: int) -> FetchEnv:
         from hrc_lab.rl.trainer import ENV_SEED_STRIDE
 
-        return make_fetch_env(self.env_id, self.seed + index * ENV_SEED_STRIDE)
+        return make_fetch_env(self.env_id, self.seed + index * ENV_SEED_STRIDE, self.reward)
 
 
 def evaluate_fetch(agent: Any, env: FetchEnv, episodes: int) -> dict[str, float]:
@@ -124,8 +126,9 @@ def train_fetch(env_id: str, rl_cfg: RLConfig, epochs: int, seed: int = 0, eval_
 
     if epochs < 1 or eval_episodes < 1:
         raise ValueError(f"epochs and eval_episodes must be >= 1, got {epochs}, {eval_episodes}")
-    test = make_fetch_env(env_id, EVAL_SEED + seed)  # also rejects an unknown id before any process starts
-    envs = training_envs(FetchFactory(env_id, seed), rl_cfg.n_envs)
+    # also rejects an unknown id before any process starts
+    test = make_fetch_env(env_id, EVAL_SEED + seed, rl_cfg.reward)
+    envs = training_envs(FetchFactory(env_id, seed, rl_cfg.reward), rl_cfg.n_envs)
     curve: list[float] = []
 
     def record(metrics: dict[str, float], epoch: int) -> None:

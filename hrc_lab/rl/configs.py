@@ -23,6 +23,7 @@ STARTS = ("scene", "held")
 GOAL_STRATEGIES = ("future", "final", "episode")  # stable-baselines3's GoalSelectionStrategy values
 TARGET_UPDATES = ("cycle", "step")
 GUIDED_EPISODES = ("replay", "demos")
+REWARDS = ("sparse", "dense")
 
 
 @dataclass
@@ -58,6 +59,10 @@ class RLConfig:
     # and in HER's relabelled ones (the reward reads the transition's info; Eq. 3.7 counts a trial with a collision
     # as failed, but Eq. 3.6's reward does not see it, so nothing taught the agent to avoid one). false: Eq. 3.6
     collision_fails: bool = False
+    # sparse: Eq. 3.6 / 4.7 (0 within delta_r of every goal, else -1). dense: -sum over the goal objects of
+    # |P_obj - P_goal| (the norm Eq. 3.6 thresholds), the setting of Fig. 3.12's text ("guiding the learning of the
+    # DRL even with dense rewards", 3.4.3). Success is Eq. 3.6's either way (info["is_success"])
+    reward: str = "sparse"
     # --- DDPG (HER paper: Adam 1e-3, 3 x 256 ReLU layers, batch 256, gamma 0.98, polyak 0.95, 20 % Gaussian noise) ---
     learning_rate: float = 1e-3
     # Adam's step size (actor and critic) falls linearly from learning_rate at the first epoch to this at the run's
@@ -188,6 +193,8 @@ class RLConfig:
             raise ValueError(f"rl.wrist3 must be one of ['relative', 'absolute'], got '{self.wrist3}'")
         if self.release not in ("support", "never"):
             raise ValueError(f"rl.release must be one of ['support', 'never'], got '{self.release}'")
+        if self.reward not in REWARDS:
+            raise ValueError(f"rl.reward must be one of {list(REWARDS)}, got '{self.reward}'")
         if self.guidance not in GUIDANCES:
             raise ValueError(f"rl.guidance must be one of {list(GUIDANCES)}, got '{self.guidance}'")
         if not 0 <= self.lam <= 1:

@@ -17,6 +17,9 @@ Reward, Eq. 3.6 / 4.7, on single goals or batches (``compute_reward`` recomputes
     R = 0   if |P_obj - P_goal| <= delta_r for every goal object
        -1   otherwise
 
+With ``reward="dense"`` (``rl.reward``; Fig. 3.12's "even with dense rewards") R = -sum_objects |P_obj - P_goal|
+instead; ``info["is_success"]`` is Eq. 3.6's criterion either way.
+
 Yaw under the part's symmetry (``yaw_symmetry`` n, ``rl.yaw_symmetry``; default 4): a 5 x 5 cm cuboid
 (correction_cell.HALF, a square footprint) turned by 90 degrees is the same part in the same place, so the achieved
 yaw is psi modulo 2 pi / n, wrapped to [-pi / n, pi / n), and every yaw error (the reward's, ``goal_distances``',
@@ -76,7 +79,7 @@ from gymnasium import spaces
 from hrc_lab.env.robot.cell import PICK, HRCCell
 from hrc_lab.env.robot.correction_cell import ErrorCorrection
 from hrc_lab.env.robot.package_cell import PackageToOrder
-from hrc_lab.rl.configs import STARTS, SUCTIONS
+from hrc_lab.rl.configs import REWARDS, STARTS, SUCTIONS
 
 YAW_SYMMETRIES = (1, 2, 4)  # rl.yaw_symmetry: the subgroups of a square's rotations about z
 WRIST3_MODES = ("relative", "absolute")  # rl.wrist3
@@ -114,6 +117,14 @@ def sparse_reward(achieved_goal: np.ndarray, desired_goal: np.ndarray, delta_r: 
     return np.where(within, 0.0, -1.0).astype(np.float32)
 
 
+def dense_reward(achieved_goal: np.ndarray, desired_goal: np.ndarray, dims_per_object: int,
+                 yaw_orders: np.ndarray | None = None) -> np.ndarray:
+    """-sum over the k goal objects of |P_obj - P_goal| (the norm Eq. 3.6 thresholds, yaw wrapped as in
+    :func:`sparse_reward`), shape ``(...)``, float32: the dense reward of Fig. 3.12's text."""
+    difference = goal_differences(achieved_goal, desired_goal, dims_per_object, yaw_orders)
+    return (-np.linalg.norm(difference, axis=-1).sum(axis=-1)).astype(np.float32)
+
+
 class HRCGoalEnv(gym.Env):
     """A gymnasium goal env around an :class:`~hrc_lab.env.robot.cell.HRCCell` (error correction or
     package-to-order); see the module docstring. The cell stays reachable as ``env.cell``."""
@@ -124,7 +135,7 @@ class HRCGoalEnv(gym.Env):
                  delta_r: float | None = None, disable_effector_on_collision: bool = True,
                  cases: tuple[int, ...] = (), suction: str = "action", start: str = "scene",
                  yaw_symmetry: int = 4, wrist3: str = "relative", release: str = "support",
-                 collision_fails: bool = False) -> None:
+                 collision_fails: bool = False, reward: str = "sparse") -> None:
         if not isinstance(cell, ErrorCorrection | PackageToOrder):
             raise TypeError(f"HRCGoalEnv wraps ErrorCorrection or PackageToOrder cells, got {type(cell).__name__}")
         if steps_per_subtask < 1:
@@ -146,11 +157,14 @@ class HRCGoalEnv(gym.Env):
             raise ValueError(f"rl.wrist3 must be one of {list(WRIST3_MODES)}, got '{wrist3}'")
         if release not in RELEASES:
             raise ValueError(f"rl.release must be one of {list(RELEASES)}, got '{release}'")
+        if reward not in REWARDS:
+            raise ValueError(f"rl.reward must be one of {list(REWARDS)}, got '{reward}'")
         self.cell = cell
         self.yaw_symmetry = int(yaw_symmetry)
         self.wrist3_relative = wrist3 == "relative"
         self.release_on_support = release == "support" and suction == "auto"
         self.collision_fails = collision_fails
+        self.dense = reward == "dense"
         self.yaw_orders = np.zeros(0, dtype=int)
         self._cup_off = False  # rl.release=support: the cup released a part and stays off until the lip left it
         self._grip, self._grip_z, self._lifted = -1, 0.0, False
@@ -202,7 +216,8 @@ class HRCGoalEnv(gym.Env):
         obs = self._obs()
         collided = bool(self.cell.collisions)
         reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], {"collided": collided}))
-        success = reward == 0.0 and not collided
+        success = not collided and bool(sparse_reward(obs["achieved_goal"], obs["desired_goal"], self.delta_r,
+                                                      self.dims_per_object, self._yaw_orders()) == 0.0)
         info = {
             "is_success": success,
             "success": success,
@@ -216,16 +231,21 @@ class HRCGoalEnv(gym.Env):
         return obs, reward, False, truncated, info
 
     def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
-        """Eq. 3.6 / 4.7 (:func:`sparse_reward`) on one goal or a batch, yaw errors under the goal objects'
-        symmetry (``yaw_orders``); with ``rl.collision_fails`` -1 where the transition's ``info`` (a dict, or one per
-        goal of a batch, as stable-baselines3's HER buffer passes them) says the episode ``collided``."""
-        reward = sparse_reward(achieved_goal, desired_goal, self.delta_r, self.dims_per_object, self._yaw_orders())
+        """Eq. 3.6 / 4.7 (:func:`sparse_reward`, or :func:`dense_reward` with ``rl.reward=dense``) on one goal or a
+        batch, yaw errors under the goal objects' symmetry (``yaw_orders``); with ``rl.collision_fails`` at most -1
+        where the transition's ``info`` (a dict, or one per goal of a batch, as stable-baselines3's HER buffer passes
+        them) says the episode ``collided``."""
+        if self.dense:
+            reward = dense_reward(achieved_goal, desired_goal, self.dims_per_object, self._yaw_orders())
+        else:
+            reward = sparse_reward(achieved_goal, desired_goal, self.delta_r, self.dims_per_object,
+                                   self._yaw_orders())
         if not self.collision_fails:
             return reward
         if isinstance(info, dict):
-            return np.float32(-1.0) if info.get("collided", False) else reward
+            return np.minimum(reward, np.float32(-1.0)) if info.get("collided", False) else reward
         collided = np.array([bool(i.get("collided", False)) for i in info]).reshape(reward.shape)
-        return np.where(collided, np.float32(-1.0), reward)
+        return np.where(collided, np.minimum(reward, np.float32(-1.0)), reward)
 
     def close(self) -> None:
         self.cell.close()
@@ -406,7 +426,7 @@ def make_goal_env(env_cfg: Any, rl_cfg: Any, seed: int | None = None, subtask: i
 
 
 def task_switches(rl_cfg: Any) -> dict[str, Any]:
-    """The ``rl`` config's ``yaw_symmetry``, ``wrist3``, ``release`` and ``collision_fails`` as :class:`HRCGoalEnv`
-    keywords (an env built without a config gets the defaults, the faithful reading of 3.3)."""
+    """The ``rl`` config's ``yaw_symmetry``, ``wrist3``, ``release``, ``collision_fails`` and ``reward`` as
+    :class:`HRCGoalEnv` keywords (an env built without a config gets the defaults, the faithful reading of 3.3)."""
     return {"yaw_symmetry": rl_cfg.yaw_symmetry, "wrist3": rl_cfg.wrist3, "release": rl_cfg.release,
-            "collision_fails": rl_cfg.collision_fails}
+            "collision_fails": rl_cfg.collision_fails, "reward": rl_cfg.reward}
