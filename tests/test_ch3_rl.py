@@ -24,6 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
     ("ch3/fig_3_13", ["rl.n_envs=0"], "rl.n_envs"),
     ("ch3/fig_3_13", ["rl=none"], "rl"),
     ("ch3/fig_3_12", ["motion.ndp.mode=regression"], "rl.guidance=ndp_direction needs motion.ndp.mode"),
+    ("ch3/fig_3_12", ["rl.reward=shaped"], "rl.reward"),
     ("ch3/fig_3_9", ["rl=ddpg_her"], "rl"),
     ("ch3/fig_3_9", ["protocol.within_m=0"], "protocol.within_m"),
 ])
@@ -66,6 +67,7 @@ def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_p
     report = build_topic("ch3_rl", job.tracking_uri, tmp_path / "report").read_text()
     assert "Fig. 3.13" in report and "ablation" in report and "0.95" in report
     assert "evaluation episodes that held the part" in report and 0 <= job.metrics["final_grip_rate"] <= 1
+    assert "Eq. 3.6's sparse reward" in report and "dense reward" not in report  # rl.reward, logged and named
     # scripts/rl_final_policies.py replays the run's last evaluation from its saved agent
     import runpy
     import sys

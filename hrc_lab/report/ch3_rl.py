@@ -134,6 +134,15 @@ def inputs_text(runs: pd.DataFrame) -> str:
     return " or ".join(names.get(v, f"rl.normalize_inputs={v}") for v in sorted(values))
 
 
+def reward_text(runs: pd.DataFrame) -> str:
+    """Which reward the runs trained on (``rl.reward``; runs from before the key had Eq. 3.6's)."""
+    column = f"{PARAM_PREFIX}rl.reward"
+    values = set(runs[column].fillna("sparse").astype(str)) if column in runs else {"sparse"}
+    names = {"sparse": "Eq. 3.6's sparse reward (0 within δr, else -1)",
+             "dense": "a dense reward, -Σ ‖P_obj − P_goal‖ (success still Eq. 3.6's within δr)"}
+    return " or ".join(names.get(v, f"rl.reward={v}") for v in sorted(values))
+
+
 def ddpg_text(runs: pd.DataFrame) -> str:
     """Whether the runs' DDPG had the HER paper's action penalty, random actions and clipped targets
     (``rl.action_l2``, ``rl.random_eps``, ``rl.clip_return``; :class:`hrc_lab.rl.ddpg.HerDDPG`)."""
@@ -160,7 +169,7 @@ def epoch_text(runs: pd.DataFrame) -> str:
             "the scripted-expert demonstrations per subtask in the agent's demonstration buffer, in its own "
             "column), subtasks in sequence (thesis: within 550 epochs, read as the reference implementation's). "
             "Agent: DDPG + HER, hidden layers "
-            f"{net_arch(runs)}, {inputs_text(runs)}, {ddpg_text(runs)}; planner trained on "
+            f"{net_arch(runs)}, {inputs_text(runs)}, {ddpg_text(runs)}, {reward_text(runs)}; planner trained on "
             f"{amount(runs, 'protocol.demos', 'expert demonstrations')}. Final SR: the last epoch's evaluation, "
             f"mean over the plan's subtasks; SR, last {LAST_EPOCHS} epochs: the evaluations of each subtask's last "
             f"{LAST_EPOCHS} epochs pooled; {over_seeds(runs)}.")
