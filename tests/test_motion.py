@@ -171,6 +171,16 @@ def test_path_targets_are_the_end_effector_later_in_the_same_stage():
     np.testing.assert_allclose(s[0], demo.obs["robot0_eef_pos"][first + 1])
     np.testing.assert_allclose(r[0], demo.obs["lip_target_pos"][first])
     np.testing.assert_allclose(a[0], demo.actions[first, :3])
+    # path_action=mean: the expert's mean step over the h steps from r to s (h = 3 pairs follow the h = 1 ones)
+    r3, s3, mean = dynamics_pairs([demo], NDPConfig(targets="path", path_steps=[1, 3], path_action="mean"))
+    np.testing.assert_allclose(r3, r) and np.testing.assert_allclose(s3, s)
+    np.testing.assert_allclose(mean[0], demo.actions[first, :3])  # h = 1: the one step
+    threes = [t for t in range(len(demo) - 3) if labels[t] == labels[t + 3]]  # the h = 3 pairs, last in the list
+    np.testing.assert_allclose(mean[len(expected) - len(threes)], demo.actions[threes[0]:threes[0] + 3, :3].mean(0))
+    with pytest.raises(ValueError, match="motion.ndp.path_action"):
+        NDPConfig(path_action="mean")  # designed waypoints have no h steps
+    with pytest.raises(ValueError, match="motion.ndp.path_action"):
+        NDPConfig(targets="path", path_action="sum")
     with pytest.raises(ValueError, match="motion.ndp.targets"):
         NDPConfig(targets="waypoints")
     with pytest.raises(ValueError, match="motion.ndp.path_steps"):

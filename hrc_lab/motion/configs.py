@@ -17,6 +17,7 @@ STAGE_LABELS = ("classifier", "picking_classifier", "ground_truth")
 PLANNER_INPUTS = ("full", "selected")
 # What the neural dynamic planner's training sub-goal s is (hrc_lab.motion.two_level.dynamics_pairs)
 NDP_TARGETS = ("designed", "path")
+PATH_ACTIONS = ("step", "mean")
 # The GPR baseline's RBF length scales (hrc_lab.motion.configs.SubgoalConfig.gpr_kernel)
 GPR_KERNELS = ("ard", "isotropic")
 
@@ -37,12 +38,22 @@ class NDPConfig:
     # answered "stay" to the first planned sub-goal and no guided episode held the part, issue 43)
     targets: str = "designed"
     path_steps: list[int] = field(default_factory=lambda: [2, 4, 8])
+    # targets=path only: the action a_t of the pair (r_t, s = end effector h steps later): "step", the expert's step
+    # at t; "mean", its mean step over the h steps, the motion that takes r_t to s. With "step" the direction
+    # planner stopped ~7 cm above its last picking sub-goal and stayed (every joint "stay"; Fig. 3.12's place cell,
+    # the expert slows near the part), so the guide alone held the part in 5-55 % of episodes (docs/chapters/ch3_rl.md)
+    path_action: str = "step"
 
     def __post_init__(self) -> None:
         if self.mode not in ("regression", "direction"):
             raise ValueError(f"motion.ndp.mode must be 'regression' or 'direction', got '{self.mode}'")
         if self.targets not in NDP_TARGETS:
             raise ValueError(f"motion.ndp.targets must be one of {list(NDP_TARGETS)}, got '{self.targets}'")
+        if self.path_action not in PATH_ACTIONS:
+            raise ValueError(f"motion.ndp.path_action must be one of {list(PATH_ACTIONS)}, got '{self.path_action}'")
+        if self.path_action != "step" and self.targets != "path":
+            raise ValueError(f"motion.ndp.path_action={self.path_action} needs motion.ndp.targets=path (a designed "
+                             f"waypoint's pair has the expert's one step), got targets={self.targets}")
         if not self.path_steps or min(self.path_steps) < 1:
             raise ValueError(f"motion.ndp.path_steps must be a non-empty list of steps >= 1, got {self.path_steps}")
         for key in ("hidden", "lr", "steps", "batch_size"):

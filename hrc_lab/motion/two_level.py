@@ -141,7 +141,8 @@ def dynamics_pairs(demos, ndp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     the measured lip lags a step behind, and a planner trained on it learns to stop short), a sub-goal and the
     expert's [base, shoulder, elbow] deltas (Delta = s - r, Eq. 3.5). ``ndp.targets`` (the
     :class:`~hrc_lab.motion.configs.NDPConfig`) names s: ``designed``, the sub-goal the expert was heading for;
-    ``path``, the end effector ``h`` steps later for each ``h`` in ``ndp.path_steps`` within the same stage."""
+    ``path``, the end effector ``h`` steps later for each ``h`` in ``ndp.path_steps`` within the same stage, with
+    the expert's step at t as a_t (``ndp.path_action`` ``step``) or its mean step over those h steps (``mean``)."""
     if ndp.targets == "designed":
         r = np.concatenate([d.obs["lip_target_pos"] for d in demos])
         s = np.concatenate([d.subgoals for d in demos])
@@ -154,7 +155,11 @@ def dynamics_pairs(demos, ndp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             t = t[d.stage_labels[t] == d.stage_labels[t + h]]
             rs.append(d.obs["lip_target_pos"][t])
             ss.append(d.obs["robot0_eef_pos"][t + h])
-            as_.append(d.actions[t, :3])
+            if ndp.path_action == "mean":
+                done = np.cumsum(np.vstack([np.zeros((1, 3)), d.actions[:, :3]]), axis=0)  # joint motion before t
+                as_.append((done[t + h] - done[t]) / h)
+            else:
+                as_.append(d.actions[t, :3])
     return np.concatenate(rs), np.concatenate(ss), np.concatenate(as_)
 
 
