@@ -173,7 +173,8 @@ def test_path_targets_are_the_end_effector_later_in_the_same_stage():
     np.testing.assert_allclose(a[0], demo.actions[first, :3])
     # path_action=mean: the expert's mean step over the h steps from r to s (h = 3 pairs follow the h = 1 ones)
     r3, s3, mean = dynamics_pairs([demo], NDPConfig(targets="path", path_steps=[1, 3], path_action="mean"))
-    np.testing.assert_allclose(r3, r) and np.testing.assert_allclose(s3, s)
+    np.testing.assert_allclose(r3, r)
+    np.testing.assert_allclose(s3, s)
     np.testing.assert_allclose(mean[0], demo.actions[first, :3])  # h = 1: the one step
     threes = [t for t in range(len(demo) - 3) if labels[t] == labels[t + 3]]  # the h = 3 pairs, last in the list
     np.testing.assert_allclose(mean[len(expected) - len(threes)], demo.actions[threes[0]:threes[0] + 3, :3].mean(0))

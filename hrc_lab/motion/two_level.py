@@ -150,16 +150,13 @@ def dynamics_pairs(demos, ndp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return r, s, a
     rs, ss, as_ = [], [], []
     for d in demos:
+        done = np.cumsum(np.vstack([np.zeros((1, 3)), d.actions[:, :3]]), axis=0)  # joint motion before each step
         for h in ndp.path_steps:
             t = np.arange(len(d) - h)
             t = t[d.stage_labels[t] == d.stage_labels[t + h]]
             rs.append(d.obs["lip_target_pos"][t])
             ss.append(d.obs["robot0_eef_pos"][t + h])
-            if ndp.path_action == "mean":
-                done = np.cumsum(np.vstack([np.zeros((1, 3)), d.actions[:, :3]]), axis=0)  # joint motion before t
-                as_.append((done[t + h] - done[t]) / h)
-            else:
-                as_.append(d.actions[t, :3])
+            as_.append((done[t + h] - done[t]) / h if ndp.path_action == "mean" else d.actions[t, :3])
     return np.concatenate(rs), np.concatenate(ss), np.concatenate(as_)
 
 

@@ -188,13 +188,13 @@ def _kernel_paths(runs: pd.DataFrame) -> list[str]:
             rows.append({"method": METHODS[method], "kernels": k, "seeds": ", ".join(map(str, seeds)),
                          **{title: fmt(*spread(runs_of[k], c), 3) for c, title in zip(cells, titles)},
                          "detector recall": fmt(*spread(runs_of[k], "detector_recall"), 3)})
-        means = []  # the table's cells: means over seeds, each with its two stds (hrc-lab-reproduce --check)
+        moves = []  # per table cell: |mean over seeds, new - old| and the larger seed std (hrc-lab-reproduce --check)
         for c in cells:
             (m_new, s_new), (m_old, s_old) = spread(runs_of[new], c), spread(runs_of[old], c)
-            means.append((abs(m_new - m_old), max(s_new, s_old)))
-        cell_moves += means
+            moves.append((abs(m_new - m_old), max(s_new, s_old)))
+        cell_moves += moves
         delta = (runs_of[new][cells] - runs_of[old][cells]).abs().to_numpy().ravel()
-        seed_std = max(std for _, std in means)
+        seed_std = max(std for _, std in moves)
         moved.append(f"{METHODS[method]}: the {len(delta)} cells (seed x request size) moved by {delta.mean():.3f} "
                      f"on average, at most {delta.max():.3f}; the seeds' largest std in a column is {seed_std:.3f}")
     if not rows:
