@@ -25,6 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
     ("ch3/fig_3_13", ["rl=none"], "rl"),
     ("ch3/fig_3_12", ["motion.ndp.mode=regression"], "rl.guidance=ndp_direction needs motion.ndp.mode"),
     ("ch3/fig_3_12", ["rl.reward=shaped"], "rl.reward"),
+    ("ch3/fig_3_13", ["rl.stage_labels=oracle"], "rl.stage_labels"),
     ("ch3/fig_3_9", ["rl=ddpg_her"], "rl"),
     ("ch3/fig_3_9", ["protocol.within_m=0"], "protocol.within_m"),
 ])

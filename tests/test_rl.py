@@ -479,6 +479,21 @@ def test_guided_ddpg_her_with_the_two_level_planner_runs_updates_in_the_cell(env
     assert two_level_guide.object in (1, 2) and two_level_guide.index in (0, 1)
 
 
+def test_the_guides_picking_rule_names_its_object(env, two_level_guide):
+    """``rl.stage_labels``: c(x_1) by its rule, or the object whose goal the episode trains (``ground_truth``),
+    whatever c(x_1) says."""
+    env.reset(seed=0)
+    place_red = lambda x: np.full(len(x), 3)  # noqa: E731  (c(x) says "place red": the rule picks red)
+    guide = two_level_guide
+    rules = {}
+    for rule in ("classifier", "ground_truth"):
+        named = CorrectionGuide(place_red, guide.planner, guide.ndp, 2, 3, stage_labels=rule)
+        named.reset(env)
+        rules[rule] = (named.label, named.object)
+    assert env.goal_objects == [1]  # subtask 0 of case 1: blue
+    assert rules == {"classifier": (2, 2), "ground_truth": (0, 1)}
+
+
 def test_checkpoint_round_trip_resumes_training(env, tmp_path, monkeypatch):
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))  # SB3's default logger would write here
     (tmp_path / "tmp").mkdir()

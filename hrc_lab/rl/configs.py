@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from hrc_lab.motion.configs import STAGE_LABELS
 from hrc_lab.registry import Registry
 
 RLS = Registry("rl")
@@ -137,6 +138,12 @@ class RLConfig:
     # two-level execution allows 30), and the distance at which the sub-goal counts as reached before that
     subgoal_steps: int = 30
     subgoal_tolerance: float = 0.008
+    # What names the object a guided episode's planner goes for (the rules of Table 3.1's protocol.stage_labels,
+    # hrc_lab.motion.two_level.picking_label): ``classifier`` Algorithm 1's l = c(x_1), read as the object of its
+    # label; ``picking_classifier`` c(x_1)'s most likely picking label; ``ground_truth`` the object whose goal the
+    # episode trains (a diagnosis of c(x), not the thesis). A later subtask starts with the earlier objects on
+    # their goals and the arm at home, a state no demonstration shows
+    stage_labels: str = "classifier"
 
     def __post_init__(self) -> None:
         for key in ("steps_per_subtask", "batch_size", "buffer_size", "n_sampled_goal", "subgoal_steps",
@@ -199,6 +206,8 @@ class RLConfig:
             raise ValueError(f"rl.guidance must be one of {list(GUIDANCES)}, got '{self.guidance}'")
         if not 0 <= self.lam <= 1:
             raise ValueError(f"rl.lam must be in [0, 1], got {self.lam}")
+        if self.stage_labels not in STAGE_LABELS:
+            raise ValueError(f"rl.stage_labels must be one of {list(STAGE_LABELS)}, got '{self.stage_labels}'")
 
 
 RLS.register("ddpg_her", RLConfig, "hrc_lab.rl.agent:build_ddpg_her")

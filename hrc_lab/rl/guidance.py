@@ -78,26 +78,32 @@ class CorrectionGuide:
     proposes ``n_subgoals`` sub-goals per stage from [object positions at the stage's start, lip]; ``ndp`` d
     (:class:`~hrc_lab.motion.subgoal.DynamicPlanner`, regression or direction mode) acts towards the sub-goal.
     The next sub-goal is planned once the lip is within ``tolerance`` of the current one or after
-    ``subgoal_steps`` steps (H_lo). The stage is picking until the cup holds the object, then placing (the
-    classifier is read once: a picking label per object, as in the closed loop of
-    :func:`~hrc_lab.motion.two_level.run_correction`). Suction as there: on from a picking stage's second
-    sub-goal and through placing, off once the last placing sub-goal is reached.
+    ``subgoal_steps`` steps (H_lo). ``stage_labels`` (``rl.stage_labels``) names the object: c(x_1) by a rule of
+    :func:`~hrc_lab.motion.two_level.picking_label`, or the episode's goal object (``ground_truth``). The stage
+    is picking until the cup holds the object, then placing (the object is named once per episode, as per
+    manipulation in the closed loop of :func:`~hrc_lab.motion.two_level.run_correction`). Suction as there: on
+    from a picking stage's second sub-goal and through placing, off once the last placing sub-goal is reached.
     """
 
     def __init__(self, classifier: Any, planner: Any, ndp: Any, n_subgoals: int = 5, subgoal_steps: int = 30,
-                 tolerance: float = 0.008) -> None:
+                 tolerance: float = 0.008, stage_labels: str = "classifier") -> None:
         self.classifier, self.planner, self.ndp = classifier, planner, ndp
         self.n_subgoals, self.subgoal_steps, self.tolerance = n_subgoals, subgoal_steps, tolerance
+        self.stage_labels = stage_labels
 
     @classmethod
     def from_config(cls, cfg: Any, classifier: Any, planner: Any, ndp: Any, n_subgoals: int = 5) -> CorrectionGuide:
-        """H_lo and the reach tolerance from an ``rl`` config (``subgoal_steps``, ``subgoal_tolerance``)."""
-        return cls(classifier, planner, ndp, n_subgoals, cfg.subgoal_steps, cfg.subgoal_tolerance)
+        """H_lo, the reach tolerance and the picking rule from an ``rl`` config (``subgoal_steps``,
+        ``subgoal_tolerance``, ``stage_labels``)."""
+        return cls(classifier, planner, ndp, n_subgoals, cfg.subgoal_steps, cfg.subgoal_tolerance, cfg.stage_labels)
 
     def reset(self, env: Any) -> None:
         cell = env.cell
-        x = np.concatenate([cell.object_positions().ravel(), cell.eef_position()])
-        self.label = picking_label(self.classifier, x, "classifier")  # the object c(x_1) names
+        if self.stage_labels == "ground_truth":  # the object whose goal the episode trains
+            self.label = cell.stage_label(env.goal_objects[0], PICK)
+        else:  # the object c(x_1) names, by the rule
+            x = np.concatenate([cell.object_positions().ravel(), cell.eef_position()])
+            self.label = picking_label(self.classifier, x, self.stage_labels)
         self.object = correction_object(self.label)
         self.stage, self.index, self.steps, self.done = PICK, 0, 0, False
         self.objects = cell.object_positions().ravel()
