@@ -173,3 +173,20 @@ def test_report_gives_each_budget_its_own_row(monkeypatch):
     assert any("| 10 (0.001 → 0.0001), 50 " in r and "| 0.90 " in r for r in rows)
     assert any("| 10 (0.001 → 0.0001), 300 " in r and "| 0.50 " in r for r in rows)
     assert set(section.table.budget) == {"4 (0.001), 50", "10 (0.001 → 0.0001), 50", "10 (0.001 → 0.0001), 300"}
+
+
+def test_report_names_the_guide_and_the_guide_alone_runs():
+    """A section says which planner guided its runs and what named a guided episode's object (runs from before
+    ``rl.stage_labels``: c(x_1)'s label); runs with δg below 1 mm and λ = 1 are the guide alone."""
+    import pandas as pd
+
+    from hrc_lab.report.ch3_rl import guide_text
+    from hrc_lab.report.runs import PARAM_PREFIX as P
+
+    old = pd.DataFrame({f"{P}motion.name": ["tc_vi"] * 2, f"{P}rl.lam": ["0.7", "1"], f"{P}rl.delta_g": ["0.05"] * 2})
+    assert guide_text(old) == "Guide: the thesis' sub-goal planner (`tc_vi`), going for the object of c(x_1)'s label."
+    alone = pd.DataFrame({f"{P}motion.name": ["tc_vi_object"], f"{P}rl.lam": ["1"], f"{P}rl.delta_g": ["1e-06"],
+                          f"{P}rl.stage_labels": ["ground_truth"]})
+    text = guide_text(alone)
+    assert "hrc_lab's sub-goal planner (`tc_vi_object`" in text and "the episode's goal object" in text
+    assert "measure the guide alone" in text and "measure" not in guide_text(old)

@@ -13,7 +13,15 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
-from hrc_lab.report.runs import PARAM_PREFIX, amount, histories, over_seeds, spread  # noqa: E402
+from hrc_lab.report.runs import (  # noqa: E402
+    PARAM_PREFIX,
+    amount,
+    histories,
+    over_seeds,
+    setting_number,
+    setting_values,
+    spread,
+)
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, markdown_table, thesis_results  # noqa: E402
 
@@ -143,6 +151,29 @@ def reward_text(runs: pd.DataFrame) -> str:
     return " or ".join(names.get(v, f"rl.reward={v}") for v in sorted(values))
 
 
+GUIDE_PLANNERS = {"tc_vi": "the thesis' sub-goal planner (`tc_vi`)",
+                  "tc_vi_object": "hrc_lab's sub-goal planner (`tc_vi_object`, Table 3.1's best)"}
+GUIDE_OBJECTS = {"classifier": "the object of c(x_1)'s label",
+                 "picking_classifier": "c(x_1)'s most likely picking label",
+                 "ground_truth": "the episode's goal object, not c(x_1) (`rl.stage_labels=ground_truth`, a diagnosis)"}
+GUIDE_ALONE_M = 1e-3  # a delta_g below this with lambda 1 corrects every step: the runs measure the guide alone
+
+
+def guide_text(runs: pd.DataFrame) -> str:
+    """The guide of the runs: its sub-goal planner (``motion.name``), what named the object a guided episode goes
+    for (``rl.stage_labels``; runs from before the key: c(x_1)'s label), and, with ``rl.delta_g`` below 1 mm and
+    λ = 1, that every step was the guide's."""
+    planners = setting_values(runs, "motion.name")
+    rules = setting_values(runs, "rl.stage_labels") or ["classifier"]
+    text = ("Guide: " + " or ".join(GUIDE_PLANNERS.get(p, f"`{p}`") for p in planners or ["?"])
+            + ", going for " + " or ".join(GUIDE_OBJECTS.get(r, f"`rl.stage_labels={r}`") for r in rules) + ".")
+    delta_g = setting_number(runs, "rl.delta_g")
+    if delta_g is not None and delta_g < GUIDE_ALONE_M and set(lam_of(runs)) == {"1"}:
+        text += (f" δg = {delta_g:g} m and λ = 1: the guide corrects every step, so these runs measure the guide "
+                 "alone (its episodes are the training-episode columns).")
+    return text
+
+
 def ddpg_text(runs: pd.DataFrame) -> str:
     """Whether the runs' DDPG had the HER paper's action penalty, random actions and clipped targets
     (``rl.action_l2``, ``rl.random_eps``, ``rl.clip_return``; :class:`hrc_lab.rl.ddpg.HerDDPG`)."""
@@ -186,7 +217,7 @@ def fig_3_13(runs: pd.DataFrame) -> Section:
     intro = ("Algorithm 1: DDPG + HER whose actions the two-level planner corrects (δg = "
              f"{amount(runs, 'rl.delta_g', 'm')}) in a fraction λ of the episodes, the next sub-goal planned after "
              f"H_lo = {amount(runs, 'rl.subgoal_steps', 'steps')} (or once reached), on the error-correction "
-             f"experiments, δr = {amount(runs, 'rl.delta_r', 'm')}. " + epoch_text(runs))
+             f"experiments, δr = {amount(runs, 'rl.delta_r', 'm')}. " + guide_text(runs) + " " + epoch_text(runs))
     return curves_section(runs, "Fig. 3.13: hybrid guidance vs full guidance vs pure exploration", intro, thesis,
                           "fig_3_13.png")
 
@@ -194,7 +225,8 @@ def fig_3_13(runs: pd.DataFrame) -> Section:
 @register_section("fig_3_12")
 def fig_3_12(runs: pd.DataFrame) -> Section:
     intro = ("Place and stack: DDPG + HER guided by the direction-only neural dynamic planner (λ > 0; "
-             f"`motion.ndp.mode` {amount(runs, 'motion.ndp.mode', '')}) vs unguided (λ = 0). " + epoch_text(runs))
+             f"`motion.ndp.mode` {amount(runs, 'motion.ndp.mode', '')}) vs unguided (λ = 0). " + guide_text(runs) + " "
+             + epoch_text(runs))
     thesis = ("Thesis (Fig. 3.12): the DRL agent guided by the direction-only NDP learns both tasks faster than "
               "unguided DRL (curves only; no final numbers are stated).")
     return curves_section(runs, "Fig. 3.12: place and stack, direction-only NDP guidance vs unguided DRL", intro,
