@@ -26,6 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
     ("ch3/fig_3_12", ["motion.ndp.mode=regression"], "rl.guidance=ndp_direction needs motion.ndp.mode"),
     ("ch3/fig_3_12", ["rl.reward=shaped"], "rl.reward"),
     ("ch3/fig_3_13", ["rl.stage_labels=oracle"], "rl.stage_labels"),
+    ("ch3/fig_3_13", ["protocol.final_eval_episodes=-1"], "protocol.final_eval_episodes"),
     ("ch3/fig_3_9", ["rl=ddpg_her"], "rl"),
     ("ch3/fig_3_9", ["protocol.within_m=0"], "protocol.within_m"),
 ])
@@ -39,7 +40,7 @@ TINY = ["hydra.mode=RUN", "env=error_correction_one_object_case1", "seed=0", "tr
         "rl.cycles_per_epoch=1", "rl.episodes_per_cycle=1", "rl.gradient_steps=8", "protocol.eval_episodes=1",
         "protocol.checkpoint_every=1", "rl.steps_per_subtask=8", "rl.learning_starts=8", "rl.batch_size=8",
         "rl.demo_batch_size=2", "rl.net_arch=[16]", "rl.buffer_size=200", "protocol.expert_demos=2",
-        "rl.bc_pretrain_steps=4", "rl.critic_warmup_steps=2"]
+        "rl.bc_pretrain_steps=4", "rl.critic_warmup_steps=2", "protocol.final_eval_episodes=2"]
 
 
 def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_path, monkeypatch, capsys):
@@ -62,11 +63,15 @@ def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_p
     artifacts = {a.path: a.file_size for a in client.list_artifacts(run_id, "agents/subtask0")}
     assert artifacts["agents/subtask0/agent.zip"] < 2**20  # networks and counters, not the agent pickled twice
     assert 0 <= job.metrics["final_success_rate"] <= 1 and job.metrics["n_subtasks"] == 1
+    # the final policy on its own held-out scenes, per subtask and over the plan
+    assert job.metrics["final_policy_success_rate"] == job.run.data.metrics["final_policy_success_rate_subtask0"]
+    assert 0 <= job.metrics["final_policy_distance"] < 1
     # the report draws the curve from the metric history (the tiny job is an ablation variant: its own section)
     from hrc_lab.report.build import build_topic
 
     report = build_topic("ch3_rl", job.tracking_uri, tmp_path / "report").read_text()
     assert "Fig. 3.13" in report and "ablation" in report and "0.95" in report
+    assert "final policy SR" in report and "2 held-out scenes that no epoch's evaluation saw" in report
     assert "evaluation episodes that held the part" in report and 0 <= job.metrics["final_grip_rate"] <= 1
     assert "Eq. 3.6's sparse reward" in report and "dense reward" not in report  # rl.reward, logged and named
     # scripts/rl_final_policies.py replays the run's last evaluation from its saved agent
@@ -109,7 +114,8 @@ def test_a_killed_fig_3_13_run_resumes_from_its_agent_checkpoint(run_job):
     assert second.metrics["final_success_rate"] == first.metrics["final_success_rate"]
 
 
-ALL_FINAL = ("final_success_rate", "best_success_rate", "final_distance", "final_grip_rate", "final_moved_rate",
+ALL_FINAL = ("final_success_rate", "final_policy_success_rate", "best_success_rate", "final_distance",
+             "final_grip_rate", "final_moved_rate",
              "final_train_success_rate", "final_train_grip_rate", "final_train_moved_rate", "final_train_distance",
              "final_collision_rate", "mean_guidance_rate", "mean_env_steps_per_s", "mean_updates_per_s")
 

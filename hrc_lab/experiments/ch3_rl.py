@@ -16,7 +16,9 @@ per subtask; epoch ``k * epochs + e`` of the run is epoch ``e`` of subtask ``k``
 :func:`~hrc_lab.rl.agent.evaluate`), ``train_success_rate``, ``train_collision_rate``, ``train_grip_rate``,
 ``train_moved_rate``, ``train_final_distance`` and ``train_guidance_rate`` (that epoch's training episodes,
 exploration noise and guidance included; :class:`~hrc_lab.rl.agent.EpisodeMetrics`), ``env_steps_per_s``,
-``updates_per_s``, ``epoch_s`` and ``learning_rate`` as MLflow metrics with ``step`` = the epoch.
+``updates_per_s``, ``epoch_s`` and ``learning_rate`` as MLflow metrics with ``step`` = the epoch. After its last
+epoch each subtask's agent, the final policy, plays ``protocol.final_eval_episodes`` held-out scenes that no epoch
+saw: ``final_policy_success_rate`` (mean over the subtasks), the lower-noise final SR.
 """
 
 from __future__ import annotations
@@ -122,7 +124,7 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
     the final agents as artifacts."""
     from hrc_lab.rl import RLS
     from hrc_lab.rl.agent import evaluate
-    from hrc_lab.rl.evaluation import evaluation_env, evaluation_seed
+    from hrc_lab.rl.evaluation import FINAL_EVALUATION_SEED, evaluation_env, evaluation_seed
     from hrc_lab.rl.goal_env import make_goal_env
     from hrc_lab.rl.trainer import completed_epochs, episodes_per_epoch, train_epochs
 
@@ -132,6 +134,7 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
     n_subtasks = len(probe.cell.expert_plan())
     horizon = probe.horizon
     probe.close()
+    finals: list[dict[str, float]] = []  # each subtask's final policy on protocol.final_eval_episodes scenes
     for subtask in range(n_subtasks):
         envs = training_envs(ctx, guide, subtask)
         test = evaluation_env(ctx.cfg.env, rl, ctx.seed, subtask)
@@ -151,6 +154,10 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
                      save=lambda agent, k=subtask: save_checkpoint(ctx, agent, k),
                      checkpoint_every=protocol.checkpoint_every, step_offset=subtask * protocol.epochs,
                      desc=f"{ctx.cfg.env.cell} subtask {subtask}")
+        if protocol.final_eval_episodes:  # the final policy on scenes of its own
+            final = evaluate(agent, test, protocol.final_eval_episodes, seed=FINAL_EVALUATION_SEED)
+            finals.append(final)
+            ctx.tracker.log_metrics({f"final_policy_{key}_subtask{subtask}": v for key, v in final.items()})
         envs.close()
         test.close()
     # the run's curves as MLflow holds them (a resumed run's include the epochs it copied)
@@ -160,7 +167,11 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
     ctx.tracker.log_table(curves, "epochs")
     last = curves.groupby("subtask").tail(1)
     collected = n_subtasks * protocol.epochs * episodes_per_epoch(rl) * horizon
+    final_policy = {f"final_policy_{name}": float(np.mean([f[key] for f in finals])) for key, name in
+                    (("success_rate", "success_rate"), ("collision_rate", "collision_rate"),
+                     ("final_distance", "distance"))} if finals else {}
     return {
+        **final_policy,  # mean over the plan's subtasks of each final policy's scores
         # the overall success rate: mean over the plan's subtasks of the last epoch's evaluation
         "final_success_rate": float(last.success_rate.mean()),
         "final_collision_rate": float(last.collision_rate.mean()),

@@ -83,6 +83,7 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
             row = {"experiment": scenario.replace("_", " "), "λ": lam, "seeds": len(done),
                    BUDGET: budget}
             for metric, label in (("final_success_rate", "final SR"),
+                                  ("final_policy_success_rate", "final policy SR"),
                                   ("last_epochs_success_rate", f"SR, last {LAST_EPOCHS} epochs"),
                                   ("best_success_rate", "best SR"),
                                   ("mean_epochs_success_rate", "SR, mean over epochs"),
@@ -202,6 +203,8 @@ def epoch_text(runs: pd.DataFrame) -> str:
             "Agent: DDPG + HER, hidden layers "
             f"{net_arch(runs)}, {inputs_text(runs)}, {ddpg_text(runs)}, {reward_text(runs)}; planner trained on "
             f"{amount(runs, 'protocol.demos', 'expert demonstrations')}. Final SR: the last epoch's evaluation, "
+            "mean over the plan's subtasks; final policy SR: each subtask's last agent on "
+            f"{amount(runs, 'protocol.final_eval_episodes', 'held-out scenes')} that no epoch's evaluation saw, "
             f"mean over the plan's subtasks; SR, last {LAST_EPOCHS} epochs: the evaluations of each subtask's last "
             f"{LAST_EPOCHS} epochs pooled; {over_seeds(runs)}.")
 

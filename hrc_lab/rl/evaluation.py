@@ -1,4 +1,5 @@
-"""The held-out scenes a Ch.3 agent is evaluated on after every epoch (Fig. 3.12 / 3.13, :mod:`~hrc_lab.rl.trainer`;
+"""The held-out scenes a Ch.3 agent is evaluated on after every epoch and, as the final policy, after the last
+(Fig. 3.12 / 3.13, :mod:`~hrc_lab.rl.trainer`;
 Table 4.3's DRL draws its epochs' scenes by :func:`evaluation_seed` too):
 their own seed stream, apart from the training and demonstration scenes, so that a saved agent's evaluation can be
 replayed scene for scene (``scripts/rl_final_policies.py``, which fetches the run with
@@ -18,6 +19,10 @@ def evaluation_env(env_cfg: Any, rl_cfg: Any, seed: int, subtask: int):
     return make_goal_env(env_cfg, rl_cfg, seed=scene_seed(seed, RL_EVAL_SCENES), subtask=subtask)
 
 
+EPOCH_SEED_STRIDE = 1000  # epoch e's evaluation scenes are seeded 1000 e + k
+FINAL_EVALUATION_SEED = 10**7  # the final policy's scenes (episode k: this + k), after every epoch's up to 10^4
+
+
 def evaluation_seed(epoch: int) -> int:
     """The first scene seed of epoch ``epoch``'s evaluation (episode k: this + k)."""
-    return 1000 * epoch
+    return EPOCH_SEED_STRIDE * epoch
