@@ -1,10 +1,12 @@
 """Where do the final policies of a Ch.3 RL sweep (``ch3/fig_3_13``, ``ch3/fig_3_12``) miss Eq. 3.6's goal? Loads
 every finished run's last agent per subtask (``agents/subtask<k>/``), replays the run's last evaluation (its
-held-out scenes, the deterministic policy) and splits |P_obj - P_goal| into the position error and the yaw error;
-also how many episodes held the part, moved it more than 2 cm, or collided. Prints one row per (scenario, lambda).
+held-out scenes, the deterministic policy; with ``--final`` the scenes of ``protocol.final_eval_episodes``, which
+no epoch saw, so runs from before that key get the same measurement) and splits |P_obj - P_goal| into the
+position error and the yaw error; also Eq. 3.6's success (mean and std over the seeds' rates) and how many
+episodes held the part, moved it more than 2 cm, or collided. Prints one row per (scenario, lambda).
 
     .venv/bin/python scripts/rl_final_policies.py 2026-12-02_06-55-00 [--tracking-uri URI] [--episodes 10]
-        [--per-episode]
+        [--final] [--per-episode]
 
 A run id instead of a sweep replays that run's saved agents whatever its status (e.g. a long run's latest
 checkpoint, on the held-out scenes of its configured last epoch).
@@ -20,7 +22,7 @@ import torch
 from mlflow.tracking import MlflowClient
 
 from hrc_lab.rl.agent import MOVED_M, HerDDPG, run_episode
-from hrc_lab.rl.evaluation import evaluation_env, evaluation_seed
+from hrc_lab.rl.evaluation import FINAL_EVALUATION_SEED, evaluation_env, evaluation_seed
 from hrc_lab.tracking import saved_run
 
 
@@ -30,7 +32,8 @@ def replay(agent: HerDDPG, env, seed: int) -> dict[str, float]:
     error = (info["achieved_goal"] - info["desired_goal"]).reshape(-1, env.dims_per_object)
     return {"position_m": float(np.linalg.norm(error[:, :3], axis=1).max()),
             "yaw_rad": float(np.abs(error[:, 3]).max()) if env.dims_per_object == 4 else float("nan"),
-            "held": info["ever_held"], "moved": info["ever_moved"], "collided": bool(info["collided"]),
+            "success": bool(info["is_success"]), "held": info["ever_held"], "moved": info["ever_moved"],
+            "collided": bool(info["collided"]),
             "delta_r": env.delta_r}
 
 
@@ -39,6 +42,9 @@ def main() -> None:
     parser.add_argument("sweep", help="the sweep's folder name (MLflow tag `sweep`), or one MLflow run id")
     parser.add_argument("--tracking-uri", default="sqlite:///runs/mlflow.db")
     parser.add_argument("--episodes", type=int, default=10, help="evaluation episodes per agent")
+    parser.add_argument("--final", action="store_true",
+                        help="the final policy's scenes (hrc_lab.rl.evaluation.FINAL_EVALUATION_SEED), not the last "
+                             "epoch's")
     parser.add_argument("--per-episode", action="store_true",
                         help="also print every episode's position error, sorted (how far the failures are)")
     args = parser.parse_args()
@@ -59,10 +65,11 @@ def main() -> None:
                 subtask = int(folder.name.removeprefix("subtask"))
                 env = evaluation_env(cfg.env, cfg.rl, seed, subtask)
                 agent = HerDDPG.load(folder / "agent.zip", env=env, device="cpu")
+                first = FINAL_EVALUATION_SEED if args.final else evaluation_seed(cfg.protocol.epochs)
                 for k in range(args.episodes):
                     rows.append({"scenario": run.data.tags["cell"], "lam": float(cfg.rl.lam), "seed": seed,
                                  "subtask": subtask,
-                                 **replay(agent, env, seed=evaluation_seed(cfg.protocol.epochs) + k)})
+                                 **replay(agent, env, seed=first + k)})
                 env.close()
         print(f"{run.data.tags.get('mlflow.runName', run.info.run_id)}: {len(rows)} episodes", flush=True)
     if not rows:
@@ -70,8 +77,12 @@ def main() -> None:
     frame = pd.DataFrame(rows)
     delta_r = frame.delta_r.iloc[0]
     groups = frame.groupby(["scenario", "lam"])
+    per_seed = frame.groupby(["scenario", "lam", "seed"]).success.mean().groupby(level=["scenario", "lam"])
     table = pd.DataFrame({
         "episodes": groups.size(),
+        "seeds": per_seed.size(),
+        "SR": per_seed.mean(),
+        "SR std over seeds": per_seed.std(ddof=0),
         "median position error (m)": groups.position_m.median(),
         "median absolute yaw error (rad)": groups.yaw_rad.median(),
         f"position within {delta_r:g}": groups.position_m.apply(lambda s: (s <= delta_r).mean()),

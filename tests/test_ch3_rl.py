@@ -74,15 +74,19 @@ def test_fig_3_13_logs_per_epoch_metrics_with_steps_and_the_agent(run_job, tmp_p
     assert "final policy SR" in report and "2 held-out scenes that no epoch's evaluation saw" in report
     assert "evaluation episodes that held the part" in report and 0 <= job.metrics["final_grip_rate"] <= 1
     assert "Eq. 3.6's sparse reward" in report and "dense reward" not in report  # rl.reward, logged and named
-    # scripts/rl_final_policies.py replays the run's last evaluation from its saved agent
+    # scripts/rl_final_policies.py replays the run's evaluation from its saved agent; with --final the final
+    # policy's scenes, scoring what the run logged as final_policy_success_rate
     import runpy
     import sys
 
-    argv = ["rl_final_policies.py", job.run.data.tags["sweep"], "--tracking-uri", job.tracking_uri, "--episodes", "1"]
+    argv = ["rl_final_policies.py", job.run.data.tags["sweep"], "--tracking-uri", job.tracking_uri, "--episodes", "2",
+            "--final"]
     monkeypatch.setattr(sys, "argv", argv)
     runpy.run_path(str(ROOT / "scripts" / "rl_final_policies.py"), run_name="__main__")
     table = capsys.readouterr().out
-    assert "| one_object_case1 |     1 |          1 |" in table and "yaw within 0.01" in table
+    assert "| one_object_case1 |     1 |          2 |" in table and "yaw within 0.01" in table
+    row = next(line for line in table.splitlines() if line.startswith("| one_object_case1"))
+    assert float(row.strip("|").split("|")[4]) == round(job.metrics["final_policy_success_rate"], 3)
     assert list((tmp_path / "report" / "ch3_rl").glob("fig_3_13_v*.png"))
 
 
