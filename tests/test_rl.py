@@ -692,6 +692,29 @@ def test_a_held_start_hands_the_agent_the_lifted_part():
         make_goal_env(package_cell(), RLConfig(**TINY, start="held"), seed=0)
 
 
+def test_a_sequence_start_begins_where_the_expert_left_the_earlier_subtasks():
+    """rl.start=sequence: a later subtask starts after the scripted expert's moves of the earlier ones (the placed
+    part near its goal, the arm above it, not at home), with a fresh step count and collision record; subtask 0
+    starts as the scene does."""
+    config = correction_cell(task="two_object")
+    sequence = make_goal_env(config, RLConfig(**TINY, start="sequence"), seed=0, subtask=1)
+    scene = make_goal_env(config, RLConfig(**TINY), seed=0, subtask=1)
+    sequence.reset(seed=3)
+    scene.reset(seed=3)
+    blue, red = sequence.cell.expert_plan()
+    assert sequence.goal_objects == scene.goal_objects == [red] and sequence.elapsed_steps == 0
+    placed = sequence.cell.object_positions()[blue]
+    assert np.linalg.norm(placed[:2] - sequence.cell.goals[blue][:2]) < 0.01  # where the expert put it
+    lip, home = sequence.cell.eef_position(), scene.cell.eef_position()
+    assert np.linalg.norm(lip - home) > 0.05 and np.linalg.norm(lip[:2] - placed[:2]) < 0.05  # above blue
+    assert sequence.cell.suction.held < 0 and not sequence.cell.collisions
+    first = make_goal_env(config, RLConfig(**TINY, start="sequence"), seed=0, subtask=0)
+    first_scene = make_goal_env(config, RLConfig(**TINY), seed=0, subtask=0)
+    np.testing.assert_allclose(first.reset(seed=3)[0]["observation"], first_scene.reset(seed=3)[0]["observation"])
+    with pytest.raises(ValueError, match="rl.start=sequence"):
+        make_goal_env(package_cell(), RLConfig(**TINY, start="sequence"), seed=0)
+
+
 class _StillAgent:
     """Holds every joint still, the cup on (``rl.suction=action``)."""
 

@@ -20,7 +20,7 @@ RLS = Registry("rl")
 
 GUIDANCES = ("none", "ndp", "ndp_direction")
 SUCTIONS = ("action", "auto")
-STARTS = ("scene", "held")
+STARTS = ("scene", "held", "sequence")
 GOAL_STRATEGIES = ("future", "final", "episode")  # stable-baselines3's GoalSelectionStrategy values
 TARGET_UPDATES = ("cycle", "step")
 GUIDED_EPISODES = ("replay", "demos")
@@ -39,8 +39,12 @@ class RLConfig:
     # [q'_base, q'_shoulder, q'_elbow, q'_wrist3], and the cup grips the part whose top face it touches and holds
     # it to the episode's end (hrc_lab.rl.goal_env)
     suction: str = "action"
-    # scene: episodes start from the sampled scene (the thesis); held: the scripted expert has already picked the
-    # goal object and lifted it, so an episode is the placing half alone (issue 19's diagnostic, not in the thesis)
+    # scene: episodes start from the sampled scene (the thesis), a later subtask's earlier objects set onto their
+    # goals and the arm at home; sequence: as scene, but the scripted expert has done the earlier subtasks, so the
+    # arm and those objects are where it left them (as subtasks trained in sequence follow one another, and as
+    # every demonstration the guide learned from goes on; from home, c(x_1) named the placed part again, issue 43);
+    # held: the scripted expert has already picked the goal object and lifted it, so an episode is the placing half
+    # alone (issue 19's diagnostic, not in the thesis)
     start: str = "scene"
     # --- the task as 3.3 states it (hrc_lab.rl.goal_env's docstring); each default is the faithful reading ---
     # the parts' rotational symmetry order about z: the achieved yaw, and every yaw error of the reward, is taken

@@ -58,10 +58,11 @@ next part.
 expert has picked the goal object and lifted it to transit height, so the agent learns the placing half alone.
 
 Episodes: error correction trains one subtask of the cell's correction plan per episode (``subtask`` k; the
-objects of the subtasks before k start at their goals, the state once those succeeded; ``subtask=None``: the
-whole plan, one goal per object) for ``steps_per_subtask`` control steps per goal object (40 in 3.4.3).
-Package-to-order gives ``steps_per_subtask`` steps per product of the order (n_selected, also in CASE 2 where the
-human packs some first), so every episode of an env has the same length. Episodes are truncated, never
+objects of the subtasks before k start at their goals, the state once those succeeded, with the arm at home, or
+with ``rl.start=sequence`` where the scripted expert's run of those subtasks left the arm and them;
+``subtask=None``: the whole plan, one goal per object) for ``steps_per_subtask`` control steps per goal object (40
+in 3.4.3). Package-to-order gives ``steps_per_subtask`` steps per product of the order (n_selected, also in CASE 2
+where the human packs some first), so every episode of an env has the same length. Episodes are truncated, never
 terminated (the goal-conditioned setting of HER); ``info["is_success"]`` (what stable-baselines3 logs as the
 success rate) is R = 0 with no collision in the episode. As in 3.3 the effector is disabled after a collision (the
 episode goes on).
@@ -149,8 +150,9 @@ class HRCGoalEnv(gym.Env):
             raise ValueError(f"rl.suction must be one of {list(SUCTIONS)}, got '{suction}'")
         if start not in STARTS:
             raise ValueError(f"rl.start must be one of {list(STARTS)}, got '{start}'")
-        if start == "held" and not isinstance(cell, ErrorCorrection):
-            raise ValueError("rl.start=held: episodes start with the part picked in error correction only")
+        if start in ("held", "sequence") and not isinstance(cell, ErrorCorrection):
+            raise ValueError(f"rl.start={start}: the scripted expert's moves before an episode exist in error "
+                             "correction only")
         if yaw_symmetry not in YAW_SYMMETRIES:
             raise ValueError(f"rl.yaw_symmetry must be one of {list(YAW_SYMMETRIES)}, got {yaw_symmetry}")
         if wrist3 not in WRIST3_MODES:
@@ -330,6 +332,9 @@ class HRCGoalEnv(gym.Env):
             elif not 0 <= self.subtask < len(plan):
                 raise ValueError(f"subtask must be in [0, {len(plan)}) for the {cell.task} task (its correction "
                                  f"plan has {len(plan)} objects) or None (the whole plan), got {self.subtask}")
+            elif self.start == "sequence":
+                self._expert_moves(plan[: self.subtask])
+                self.goal_objects = [plan[self.subtask]]
             else:
                 for done in plan[: self.subtask]:  # earlier subtasks succeeded: their objects are at their goals
                     cell.set_object_pose(done, cell.goals[done])
@@ -387,6 +392,17 @@ class HRCGoalEnv(gym.Env):
         expert.move = expert.plan.index(obj)
         while (step := expert.act()) is not None and step.stage == PICK and step.obj == obj:
             self.cell.step(step.action)
+
+    def _expert_moves(self, objects: list[int]) -> None:
+        """``rl.start=sequence``: the scripted expert picks and places ``objects`` (the subtasks before this one),
+        and the episode starts where it left the arm and the parts. Its steps are not the episode's, nor are its
+        contacts (the episode's collision record starts empty)."""
+        from hrc_lab.env.robot.expert import ScriptedExpert
+
+        expert = ScriptedExpert(self.cell, objects=objects)
+        while (step := expert.act()) is not None:
+            self.cell.step(step.action)
+        self.cell.collisions = []
 
     def _poses(self) -> np.ndarray:
         return np.column_stack([self.cell.object_positions(), self.cell.object_yaws()])
