@@ -697,7 +697,7 @@ def test_a_sequence_start_begins_where_the_expert_left_the_earlier_subtasks():
     part near its goal, the arm above it, not at home), with a fresh step count and collision record; subtask 0
     starts as the scene does."""
     config = correction_cell(task="two_object")
-    sequence = make_goal_env(config, RLConfig(**TINY, start="sequence"), seed=0, subtask=1)
+    sequence = make_goal_env(config, RLConfig(**TINY, start="sequence", suction="auto"), seed=0, subtask=1)
     scene = make_goal_env(config, RLConfig(**TINY), seed=0, subtask=1)
     sequence.reset(seed=3)
     scene.reset(seed=3)
@@ -708,6 +708,10 @@ def test_a_sequence_start_begins_where_the_expert_left_the_earlier_subtasks():
     lip, home = sequence.cell.eef_position(), scene.cell.eef_position()
     assert np.linalg.norm(lip - home) > 0.05 and np.linalg.norm(lip[:2] - placed[:2]) < 0.05  # above blue
     assert sequence.cell.suction.held < 0 and not sequence.cell.collisions
+    # the lip rests on the part the expert released: the auto cup stays off until it has left it
+    assert sequence.cell.suction.touching() == blue
+    _, _, _, _, info = sequence.step(np.zeros(sequence.action_space.shape))
+    assert not info["held"] and sequence.cell.suction.held < 0
     first = make_goal_env(config, RLConfig(**TINY, start="sequence"), seed=0, subtask=0)
     first_scene = make_goal_env(config, RLConfig(**TINY), seed=0, subtask=0)
     np.testing.assert_allclose(first.reset(seed=3)[0]["observation"], first_scene.reset(seed=3)[0]["observation"])

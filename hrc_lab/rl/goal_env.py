@@ -350,7 +350,10 @@ class HRCGoalEnv(gym.Env):
         self.yaw_orders = np.array([self._yaw_order(i) for i in self.goal_objects], dtype=int)
         self._start = self._achieved()
         self.elapsed_steps = 0
-        self._cup_off, self._grip, self._lifted = False, -1, False
+        # rl.start=sequence: the expert has just released a part under the lip; as after a release in an episode,
+        # the cup stays off until the lip has left it (rl.release=never: it grips that part again)
+        self._cup_off = self.start == "sequence" and self.release_on_support and cell.suction.touching() >= 0
+        self._grip, self._lifted = -1, False
         if self.release_on_support:
             self._release_on_support(rest_z)  # rl.start=held: the part the expert lifted counts as lifted
 
