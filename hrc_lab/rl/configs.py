@@ -145,8 +145,9 @@ class RLConfig:
     # What names the object a guided episode's planner goes for (the rules of Table 3.1's protocol.stage_labels,
     # hrc_lab.motion.two_level.picking_label): ``classifier`` Algorithm 1's l = c(x_1), read as the object of its
     # label; ``picking_classifier`` c(x_1)'s most likely picking label; ``ground_truth`` the object whose goal the
-    # episode trains (a diagnosis of c(x), not the thesis). A later subtask starts with the earlier objects on
-    # their goals and the arm at home, a state no demonstration shows
+    # episode trains (a diagnosis of c(x), not the thesis). With rl.start=scene a later subtask starts with the
+    # earlier objects on their goals and the arm at home, a state no demonstration shows, and c(x_1) named the
+    # placed part again; rl.start=sequence starts it as the demonstrations go on
     stage_labels: str = "classifier"
 
     def __post_init__(self) -> None:
