@@ -167,9 +167,9 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
     ctx.tracker.log_table(curves, "epochs")
     last = curves.groupby("subtask").tail(1)
     collected = n_subtasks * protocol.epochs * episodes_per_epoch(rl) * horizon
-    final_policy = {f"final_policy_{name}": float(np.mean([f[key] for f in finals])) for key, name in
-                    (("success_rate", "success_rate"), ("collision_rate", "collision_rate"),
-                     ("final_distance", "distance"))} if finals else {}
+    final_policy = {name: float(np.mean([f[key] for f in finals])) for name, key in
+                    {"final_policy_success_rate": "success_rate", "final_policy_collision_rate": "collision_rate",
+                     "final_policy_distance": "final_distance"}.items()} if finals else {}
     return {
         **final_policy,  # mean over the plan's subtasks of each final policy's scores
         # the overall success rate: mean over the plan's subtasks of the last epoch's evaluation
