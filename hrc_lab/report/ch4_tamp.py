@@ -8,7 +8,7 @@ import pandas as pd
 from hrc_lab.report.plots import success_bars
 from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, over_seeds, setting
 from hrc_lab.report.sections import Section, register_section
-from hrc_lab.report.thesis import fmt, thesis_cells, thesis_fmt, thesis_results, thesis_value
+from hrc_lab.report.thesis import fmt, fmt_seeds, thesis_cells, thesis_fmt, thesis_results, thesis_value
 from hrc_lab.tamp.configs import LABELS, SYSTEMS
 
 CELLS = ["2of3", "3of3", "3of5", "4of5"]
@@ -16,9 +16,10 @@ FAILURES = ("wrong_stage", "wrong_object", "wrong_slot", "pick", "placement", "c
             "timeout", "stages", "goal")
 
 
-def _stat(stats: pd.DataFrame, system: str, cell: str) -> tuple[float, float]:
+def _stat(stats: pd.DataFrame, system: str, cell: str) -> tuple[float, float, int]:
+    """Mean, spread and number of seeds of one system's metric in one cell."""
     hit = stats[(stats.method == system) & (stats.cell == cell)]
-    return (hit.iloc[0]["mean"], hit.iloc[0]["std"]) if len(hit) else (np.nan, np.nan)
+    return (hit.iloc[0]["mean"], hit.iloc[0]["std"], int(hit.iloc[0]["n"])) if len(hit) else (np.nan, np.nan, 0)
 
 
 def _mean(runs: pd.DataFrame, system: str, metric: str, cell: str | None = None) -> float:
@@ -60,8 +61,8 @@ def table_4_3(runs: pd.DataFrame) -> Section:
         for cell in cells:
             # None: not run (or a system the thesis does not have)
             ref = thesis_value(thesis.get(system, {}).get("sr"), thesis["columns"], cell) or (None, None)
-            mean, std = _stat(stats["sr"], system, cell)
-            row[f"{cell} SR"] = f"{fmt(mean, std)} ({thesis_fmt(*ref)})"
+            mean, std, seeds = _stat(stats["sr"], system, cell)
+            row[f"{cell} SR"] = f"{fmt_seeds(mean, std, seeds, runs.seed.nunique())} ({thesis_fmt(*ref)})"
             c1, c2 = _stat(stats["sr_case1"], system, cell)[0], _stat(stats["sr_case2"], system, cell)[0]
             row[f"{cell} CASE 1 / 2"] = f"{fmt(c1)} / {fmt(c2)}"
             csv.append({"system": system, "cell": cell, "sr_mean": mean, "sr_std": std, "sr_case1": c1,

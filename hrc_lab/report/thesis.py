@@ -46,6 +46,13 @@ def fmt(mean: float | None, std: float | None = None, digits: int = 2) -> str:
     return _mean_std_text(mean, None if one_seed() else std, digits)
 
 
+def fmt_seeds(mean: float | None, std: float | None, seeds: int, section_seeds: int) -> str:
+    """:func:`fmt` for a cell built from ``seeds`` of the section's ``section_seeds`` seeds: a cell with fewer says
+    how many ("0.38 [1 of 2 seeds]"; none: "–"), and one seed has no spread to print (not "0.38 ± 0.00")."""
+    text = fmt(mean, std if seeds > 1 else None)
+    return text if seeds in (0, section_seeds) else f"{text} [{seeds} of {section_seeds} seeds]"
+
+
 def markdown_table(frame, index: bool = False, **kwargs) -> str:
     """``frame.to_markdown`` for a table of :func:`fmt` cells. In a section of one seed its text columns are not
     read as numbers, so that a cell "0.60" stays "0.60" (tabulate would print 0.6; elsewhere the cell's "±" keeps
