@@ -65,7 +65,7 @@ def table_4_3(runs: pd.DataFrame) -> Section:
             row[f"{cell} SR"] = f"{fmt_seeds(mean, std, seeds, runs.seed.nunique())} ({thesis_fmt(*ref)})"
             c1, c2 = _stat(stats["sr_case1"], system, cell)[0], _stat(stats["sr_case2"], system, cell)[0]
             row[f"{cell} CASE 1 / 2"] = f"{fmt(c1)} / {fmt(c2)}"
-            csv.append({"system": system, "cell": cell, "sr_mean": mean, "sr_std": std, "sr_case1": c1,
+            csv.append({"system": system, "cell": cell, "seeds": seeds, "sr_mean": mean, "sr_std": std, "sr_case1": c1,
                         "sr_case2": c2, "thesis_sr": ref[0],
                         "planning_ms_per_object": _mean(runs, system, "planning_ms_per_object", cell),
                         "steps_per_object": _mean(runs, system, "steps_per_object", cell),
