@@ -117,7 +117,6 @@ def test_table_4_3_renders_a_cell_the_thesis_has_no_column_for():
     assert thesis["3of5"] == 0.92 and is_missing(thesis["5of6"])
 
 
-
 def test_table_4_3_cell_of_fewer_seeds_names_its_count_and_prints_no_spread_of_one():
     runs = pd.DataFrame({"method": ["drl"] * 3, "cell": ["2of3", "2of3", "3of3"], "seed": [0, 1, 0],
                          "run_id": ["a", "b", "c"], "sr": [0.3, 0.5, 0.38], "sr_case1": [0.1, 0.2, 0.2],
@@ -125,6 +124,7 @@ def test_table_4_3_cell_of_fewer_seeds_names_its_count_and_prints_no_spread_of_o
     row = row_of(build("table_4_3", runs).markdown, "| DRL (DDPG + HER) | 0.40")
     assert row == ("| DRL (DDPG + HER) | 0.40 ± 0.10 (0.41 ± 0.03) | 0.15 / 0.65 "
                    "| 0.38 [1 of 2 seeds] (0.31 ± 0.02) | 0.20 / 0.56 |")
+
 
 # --- Ch.5: goal counts (a 4-goal product was dropped; "10goals" read the thesis' 1-goal row) ---
 

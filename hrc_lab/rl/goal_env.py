@@ -79,6 +79,7 @@ from gymnasium import spaces
 
 from hrc_lab.env.robot.cell import PICK, HRCCell
 from hrc_lab.env.robot.correction_cell import ErrorCorrection
+from hrc_lab.env.robot.expert import ScriptedExpert
 from hrc_lab.env.robot.package_cell import PackageToOrder
 from hrc_lab.rl.configs import REWARDS, STARTS, SUCTIONS
 
@@ -389,8 +390,6 @@ class HRCGoalEnv(gym.Env):
     def _pick(self, obj: int) -> None:
         """``rl.start=held``: the scripted expert's picking stage of ``obj`` (above it, down onto its top face, cup
         on, lifted to transit height), so the episode is the placing half alone. Its steps are not the episode's."""
-        from hrc_lab.env.robot.expert import ScriptedExpert
-
         expert = ScriptedExpert(self.cell)
         expert.move = expert.plan.index(obj)
         while (step := expert.act()) is not None and step.stage == PICK and step.obj == obj:
@@ -400,8 +399,6 @@ class HRCGoalEnv(gym.Env):
         """``rl.start=sequence``: the scripted expert picks and places ``objects`` (the subtasks before this one),
         and the episode starts where it left the arm and the parts. Its steps are not the episode's, nor are its
         contacts (the episode's collision record starts empty)."""
-        from hrc_lab.env.robot.expert import ScriptedExpert
-
         expert = ScriptedExpert(self.cell, objects=objects)
         while (step := expert.act()) is not None:
             self.cell.step(step.action)
