@@ -161,15 +161,32 @@ class RunTracker:
             self._downloads.cleanup()
 
     def resume_checkpoint(self, artifact: str) -> Path | None:
-        """The parent run's checkpoint ``artifact`` (e.g. ``checkpoints/ndp/last.ckpt``) downloaded to a local
-        file, or None when that run saved no such checkpoint (the fit then starts from scratch)."""
+        """The resumed run's checkpoint ``artifact`` (e.g. ``checkpoints/ndp/last.ckpt``) downloaded to a local
+        file, or None when no run of the chain saved one (the fit then starts from scratch). A resumed run killed
+        before its first checkpoint saved none of its own: its checkpoint is then the one it resumed from, so the
+        chain of ``resumed_from`` tags is followed to the nearest run that holds ``artifact``."""
         folder, _, name = artifact.rpartition("/")
-        if self.parent_run_id is None or name not in {Path(f.path).name for f in
-                                                       self.client.list_artifacts(self.parent_run_id, folder)}:
+        source = self.parent_run_id
+        while source is not None and name not in {Path(f.path).name for f in
+                                                  self.client.list_artifacts(source, folder)}:
+            source = self.client.get_run(source).data.tags.get("resumed_from")
+        if source is None:
             return None
         if self._downloads is None:
             self._downloads = tempfile.TemporaryDirectory(prefix="hrc_lab_resume_")
-        return Path(self.client.download_artifacts(self.parent_run_id, artifact, self._downloads.name))
+        return Path(self.client.download_artifacts(source, artifact, self._downloads.name))
+
+    def copy_history(self, last_step: int, after_step: int = -1, keys: tuple[str, ...] | None = None) -> None:
+        """The resumed run's metric values of steps ``after_step`` < step <= ``last_step`` (every metric, or
+        ``keys``) into this run, with their timestamps, so that this run holds the whole curve of the checkpoint it
+        continues. The resumed run holds its own ancestors' copies, so one level is enough."""
+        if self.parent_run_id is None:
+            return
+        for key in keys if keys is not None else self.client.get_run(self.parent_run_id).data.metrics:
+            batch = [Metric(key, m.value, m.timestamp, m.step) for m in
+                     self.client.get_metric_history(self.parent_run_id, key) if after_step < m.step <= last_step]
+            for start in range(0, len(batch), 500):
+                self.client.log_batch(self.run_id, metrics=batch[start : start + 500])
 
     # logging -------------------------------------------------------------------------------------------------
     def log_config(self, cfg: DictConfig) -> None:

@@ -190,6 +190,33 @@ def test_a_resumed_fit_ends_where_an_uninterrupted_one_does(tmp_path, own_genera
     assert not torch.equal(straight, _fit(tmp_path / "short", 2, own_generator=own_generator))
 
 
+def test_a_resumed_run_killed_before_its_first_checkpoint_resumes_from_the_one_it_continued(tmp_path):
+    """Run 1 saves a checkpoint at epoch 5 and is killed at 6; run 2 resumes it and is killed at 7, before its own
+    first checkpoint. Resuming run 2 loads run 1's checkpoint (not a fresh start) and copies the curve up to it from
+    run 2 (which holds run 1's copy), with the values and timestamps as first logged."""
+    logger = LoggerConfig(tracking_uri=f"sqlite:///{tmp_path}/mlflow.db", artifact_root=str(tmp_path / "art"))
+    (tmp_path / "agent").mkdir()
+    (tmp_path / "agent" / "agent.zip").write_text("epoch 5")
+    with pytest.raises(RunInterrupted), RunTracker(logger, "exp", "first", {}) as first:
+        for epoch in range(1, 7):
+            first.log_metrics({"epoch_s": float(epoch)}, step=epoch)
+        first.log_artifact(tmp_path / "agent", "agent")
+        raise RunInterrupted(signal.SIGTERM)
+    with pytest.raises(RunInterrupted), RunTracker(logger, "exp", "second", {}, parent_run_id=first.run_id) as second:
+        assert second.resume_checkpoint("agent/agent.zip").read_text() == "epoch 5"
+        second.copy_history(5)
+        second.log_metrics({"epoch_s": 60.0}, step=6)
+        raise RunInterrupted(signal.SIGTERM)
+    with RunTracker(logger, "exp", "third", {}, parent_run_id=second.run_id) as third:
+        assert third.resume_checkpoint("agent/agent.zip").read_text() == "epoch 5"
+        assert third.resume_checkpoint("agent/missing.zip") is None
+        third.copy_history(5)
+    client = MlflowClient(third.tracking_uri)
+    curve = sorted((m.step, m.value, m.timestamp) for m in client.get_metric_history(third.run_id, "epoch_s"))
+    assert curve == sorted((m.step, m.value, m.timestamp) for m in client.get_metric_history(first.run_id, "epoch_s")
+                           if m.step <= 5)
+
+
 def test_variant_names_overrides_beyond_the_sweep_keys():
     sweep_keys = ["env", "reasoning", "seed"]
     assert variant_of(["experiment=ch4/table_4_1", "env=package_to_order_4of5", "seed=0"], sweep_keys) == (

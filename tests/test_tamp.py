@@ -117,6 +117,12 @@ TINY = ["hydra.mode=RUN", "env=package_to_order_2of3", "trainer.max_epochs=1", "
         "protocol.min_demos=10"]
 
 
+DRL_TINY = ["protocol.drl_iterations=2", "rl.cycles_per_epoch=1", "rl.episodes_per_cycle=1", "rl.gradient_steps=4",
+            "protocol.drl_demos=1", "rl.demo_batch_size=2", "protocol.drl_eval_episodes=1", "rl.steps_per_subtask=4",
+            "rl.learning_starts=4", "rl.batch_size=8", "rl.net_arch=[16]", "rl.buffer_size=500",
+            "rl.bc_pretrain_steps=4", "rl.critic_warmup_steps=2"]
+
+
 @pytest.mark.parametrize("system,overrides", [
     ("ours", ["reasoning.steps=10", "protocol.demos=2", "motion.steps=10", "motion.ndp.steps=10",
               "protocol.max_steps_per_subgoal=3", "protocol.video_cells=[2of3]", "protocol.video_width=64",
@@ -124,10 +130,7 @@ TINY = ["hydra.mode=RUN", "env=package_to_order_2of3", "trainer.max_epochs=1", "
     ("rm_rrt_connect", ["reasoning.steps=10", "motion.timeout_s=2"]),
     ("ours_hrc", ["reasoning.steps=10", "protocol.demos=2", "motion.steps=10", "motion.ndp.steps=10",
                   "protocol.max_steps_per_subgoal=3"]),
-    ("drl", ["protocol.drl_iterations=2", "rl.cycles_per_epoch=1", "rl.episodes_per_cycle=1", "rl.gradient_steps=4",
-             "protocol.drl_demos=1", "rl.demo_batch_size=2", "protocol.drl_eval_episodes=1", "rl.steps_per_subtask=4",
-             "rl.learning_starts=4", "rl.batch_size=8", "rl.net_arch=[16]", "rl.buffer_size=500",
-             "rl.bc_pretrain_steps=4", "rl.critic_warmup_steps=2"]),
+    ("drl", DRL_TINY),
 ])
 def test_table_4_3_job_end_to_end(system, overrides, run_job, tmp_path):
     job = run_job("experiment=ch4/table_4_3", f"tamp={system}", *TINY, *overrides)
@@ -145,6 +148,24 @@ def test_table_4_3_job_end_to_end(system, overrides, run_job, tmp_path):
     report = build_topic("ch4_tamp", job.tracking_uri, tmp_path / "report").read_text()
     assert "Table 4.3" in report and "ablation" in report and "Why trials failed" in report
     assert ("DRL training" in report) == (system == "drl")  # its demonstrations' success rate, at least
+
+
+def test_a_killed_drl_run_resumes_with_its_curve_and_training_time(run_job):
+    """A DRL run killed after its last checkpoint: resume_from loads the agent, copies the per-epoch curve (and the
+    demonstrations' success rate) into the new run, trains no epoch twice, and counts the copied epochs' time in
+    ``drl_train_s``; the same agent then scores the same trials."""
+    drl = ["tamp=drl", *TINY, *DRL_TINY, "protocol.checkpoint_every=1"]
+    first = run_job("experiment=ch4/table_4_3", *drl)
+    client, parent = first.client, first.run.info.run_id
+    client.set_terminated(parent, "KILLED")
+    second = run_job("experiment=ch4/table_4_3", *drl, f"resume_from={parent}")
+    resumed = second.run.info.run_id
+    for metric in ("success_rate", "epoch_s", "demo_success_rate"):
+        old = sorted((m.step, m.value) for m in client.get_metric_history(parent, metric))
+        assert old and sorted((m.step, m.value) for m in client.get_metric_history(resumed, metric)) == old, metric
+    train_s = [client.get_run(run).data.metrics["drl_train_s"] for run in (parent, resumed)]
+    assert train_s[1] == pytest.approx(train_s[0]) and train_s[0] > 0
+    assert second.metrics["sr"] == first.metrics["sr"]
 
 
 def test_render_demo_writes_the_video_and_its_strip(run_job):

@@ -97,15 +97,6 @@ def resume_agent(ctx: RunContext, env, subtask: int):
     return load_agent(saved.parent, env)
 
 
-def copy_history(ctx: RunContext, last_step: int) -> None:
-    """The resumed run's per-epoch metrics up to ``last_step``, so that the new run holds the whole curve."""
-    client, parent = ctx.tracker.client, ctx.cfg.resume_from
-    for key in EPOCH_METRICS:
-        for metric in client.get_metric_history(parent, key):
-            if metric.step <= last_step:
-                ctx.tracker.log_metrics({key: metric.value}, step=metric.step)
-
-
 def add_expert_demos(ctx: RunContext, agent, subtask: int) -> None:
     """``protocol.expert_demos`` scripted-expert episodes of ``subtask`` into the agent's demonstration buffer, on
     scenes of their own seed stream (not the training or evaluation scenes)."""
@@ -144,8 +135,9 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
             if protocol.expert_demos:
                 add_expert_demos(ctx, agent, subtask)
         done = completed_epochs(agent, rl)
-        if done:
-            copy_history(ctx, subtask * protocol.epochs + done)
+        if done:  # the curve of the subtask's epochs the checkpoint holds
+            ctx.tracker.copy_history(subtask * protocol.epochs + done, after_step=subtask * protocol.epochs,
+                                     keys=EPOCH_METRICS)
         train_epochs(agent, rl, protocol.epochs,
                      evaluate=lambda agent, epoch, test=test: evaluate(agent, test, protocol.eval_episodes,
                                                                        seed=evaluation_seed(epoch)),

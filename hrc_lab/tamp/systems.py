@@ -15,7 +15,6 @@ of Table 4.2), :class:`RMRRTConnectSystem` (the same reasoning module with OMPL'
 from __future__ import annotations
 
 import dataclasses
-import time
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -238,7 +237,9 @@ class DRLSystem(TampSystem):
             ctx.tracker.log_artifact(ctx.output_dir / DRL_AGENT_DIR, DRL_AGENT_DIR)
 
         epochs = -(-protocol.drl_iterations // rl.cycles_per_epoch)
-        start = time.perf_counter()
+        done = trainer.completed_epochs(agent, rl)
+        if done:  # the resumed run's curve up to its checkpoint, its demonstrations' success rate included
+            ctx.tracker.copy_history(done)
         trainer.train_epochs(
             agent, rl, epochs,
             evaluate=(lambda agent, epoch: evaluate(agent, test, protocol.drl_eval_episodes,
@@ -246,7 +247,8 @@ class DRLSystem(TampSystem):
             if protocol.drl_eval_episodes else None,
             log=ctx.tracker.log_metrics, save=save, checkpoint_every=protocol.checkpoint_every,
             desc=f"drl {ctx.cfg.env.cell}")
-        ctx.tracker.log_metrics({"drl_train_s": time.perf_counter() - start})
+        epoch_times = ctx.tracker.client.get_metric_history(ctx.tracker.run_id, "epoch_s")
+        ctx.tracker.log_metrics({"drl_train_s": sum(m.value for m in epoch_times)})  # resumed epochs included
         envs.close()
         test.close()
         self.agent = agent
