@@ -177,16 +177,23 @@ class RunTracker:
         return Path(self.client.download_artifacts(source, artifact, self._downloads.name))
 
     def copy_history(self, last_step: int, after_step: int = -1, keys: tuple[str, ...] | None = None) -> None:
-        """The resumed run's metric values of steps ``after_step`` < step <= ``last_step`` (every metric, or
-        ``keys``) into this run, with their timestamps, so that this run holds the whole curve of the checkpoint it
-        continues. The resumed run holds its own ancestors' copies, so one level is enough."""
-        if self.parent_run_id is None:
-            return
-        for key in keys if keys is not None else self.client.get_run(self.parent_run_id).data.metrics:
-            batch = [Metric(key, m.value, m.timestamp, m.step) for m in
-                     self.client.get_metric_history(self.parent_run_id, key) if after_step < m.step <= last_step]
-            for start in range(0, len(batch), 500):
-                self.client.log_batch(self.run_id, metrics=batch[start : start + 500])
+        """The metric values of steps ``after_step`` < step <= ``last_step`` (every metric, or ``keys``) of the
+        runs this one continues into this run, with their timestamps, so that it holds the whole curve of the
+        checkpoint it resumes. The ``resumed_from`` chain is followed back; a step takes the value of the nearest
+        run that logged it (a resumed run re-trained the steps after its checkpoint)."""
+        taken: dict[str, dict[int, Metric]] = {}
+        source = self.parent_run_id
+        while source is not None:
+            run = self.client.get_run(source)
+            for key in keys if keys is not None else run.data.metrics:
+                history = sorted(self.client.get_metric_history(source, key), key=lambda m: m.timestamp)
+                own = {m.step: Metric(key, m.value, m.timestamp, m.step) for m in history
+                       if after_step < m.step <= last_step}  # a run's latest value of a step
+                taken[key] = {**own, **taken.get(key, {})}  # nearer runs win
+            source = run.data.tags.get("resumed_from")
+        batch = [metric for steps in taken.values() for metric in steps.values()]
+        for start in range(0, len(batch), 500):
+            self.client.log_batch(self.run_id, metrics=batch[start : start + 500])
 
     # logging -------------------------------------------------------------------------------------------------
     def log_config(self, cfg: DictConfig) -> None:

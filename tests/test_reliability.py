@@ -191,9 +191,10 @@ def test_a_resumed_fit_ends_where_an_uninterrupted_one_does(tmp_path, own_genera
 
 
 def test_a_resumed_run_killed_before_its_first_checkpoint_resumes_from_the_one_it_continued(tmp_path):
-    """Run 1 saves a checkpoint at epoch 5 and is killed at 6; run 2 resumes it and is killed at 7, before its own
-    first checkpoint. Resuming run 2 loads run 1's checkpoint (not a fresh start) and copies the curve up to it from
-    run 2 (which holds run 1's copy), with the values and timestamps as first logged."""
+    """Run 1 saves a checkpoint at epoch 5 and is killed at 6; run 2 resumes it and is killed at 6, before its own
+    first checkpoint. Resuming run 2 loads run 1's checkpoint (not a fresh start) and copies the curve up to it,
+    values and timestamps as first logged. A resumed run that copied nothing (as before copies existed) still
+    gets its ancestors' curve, each step from the nearest run that logged it."""
     logger = LoggerConfig(tracking_uri=f"sqlite:///{tmp_path}/mlflow.db", artifact_root=str(tmp_path / "art"))
     (tmp_path / "agent").mkdir()
     (tmp_path / "agent" / "agent.zip").write_text("epoch 5")
@@ -204,8 +205,7 @@ def test_a_resumed_run_killed_before_its_first_checkpoint_resumes_from_the_one_i
         raise RunInterrupted(signal.SIGTERM)
     with pytest.raises(RunInterrupted), RunTracker(logger, "exp", "second", {}, parent_run_id=first.run_id) as second:
         assert second.resume_checkpoint("agent/agent.zip").read_text() == "epoch 5"
-        second.copy_history(5)
-        second.log_metrics({"epoch_s": 60.0}, step=6)
+        second.log_metrics({"epoch_s": 60.0}, step=6)  # no copy: the chain still holds the curve
         raise RunInterrupted(signal.SIGTERM)
     with RunTracker(logger, "exp", "third", {}, parent_run_id=second.run_id) as third:
         assert third.resume_checkpoint("agent/agent.zip").read_text() == "epoch 5"
@@ -215,6 +215,10 @@ def test_a_resumed_run_killed_before_its_first_checkpoint_resumes_from_the_one_i
     curve = sorted((m.step, m.value, m.timestamp) for m in client.get_metric_history(third.run_id, "epoch_s"))
     assert curve == sorted((m.step, m.value, m.timestamp) for m in client.get_metric_history(first.run_id, "epoch_s")
                            if m.step <= 5)
+    with RunTracker(logger, "exp", "fourth", {}, parent_run_id=second.run_id) as fourth:
+        fourth.copy_history(6)  # had run 2 saved a checkpoint at 6: its step 6, run 1's steps 1-5
+    values = sorted((m.step, m.value) for m in client.get_metric_history(fourth.run_id, "epoch_s"))
+    assert values == [(epoch, float(epoch)) for epoch in range(1, 6)] + [(6, 60.0)]
 
 
 def test_variant_names_overrides_beyond_the_sweep_keys():
