@@ -5,28 +5,40 @@ node) and marks them KILLED, so nobody mistakes them for live jobs; reports neve
 stale when it was started on this host and its process (PID and start time, tags ``pid``/``process_start``) no
 longer exists. Runs started on other hosts cannot be checked from here: they are listed, and marked only with
 ``--other-hosts-older-than HOURS``.
+
+``hrc-lab-runs resumable`` lists the KILLED and FAILED runs of jobs not yet done: no run names them in
+``resumed_from`` and no FINISHED run had the same config (the check ``resume_from`` makes). Each comes with the
+command that continues it from its last checkpoint (``resume_from``, docs/interrupted.md).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import socket
+import tempfile
 import time
 
+import yaml
 from mlflow.entities import ViewType
 from mlflow.tracking import MlflowClient
 
-from hrc_lab.config import default_tracking_uri
+from hrc_lab.config import ConfigError, default_tracking_uri, validate_config
 from hrc_lab.processes import process_start
+from hrc_lab.run_naming import CONF_DIR
 from hrc_lab.tracking import resolve_tracking_uri
 
 
-def running_runs(client: MlflowClient) -> list:
+def runs_where(client: MlflowClient, query: str) -> list:
     experiments = client.search_experiments(view_type=ViewType.ALL)
     if not experiments:
         return []
     ids = [e.experiment_id for e in experiments]
-    return client.search_runs(ids, "attributes.status = 'RUNNING'", max_results=50000)
+    return client.search_runs(ids, query, max_results=50000)
+
+
+def running_runs(client: MlflowClient) -> list:
+    return runs_where(client, "attributes.status = 'RUNNING'")
 
 
 def why_stale(run, host: str, now_ms: int, other_hosts_hours: float | None) -> str | None:
@@ -65,6 +77,66 @@ def stale(tracking_uri: str, dry_run: bool, other_hosts_hours: float | None) -> 
     return found
 
 
+def job_overrides(client: MlflowClient, run) -> list[str]:
+    """The overrides of ``run``'s job (its ``hydra/overrides.yaml``), ``resume_from`` left out."""
+    with tempfile.TemporaryDirectory() as tmp:
+        overrides = yaml.safe_load(open(client.download_artifacts(run.info.run_id, "hydra/overrides.yaml", tmp)))
+    return [o for o in overrides if not o.startswith("resume_from=")]
+
+
+def why_not_resumable(overrides: list[str]) -> str | None:
+    """Why ``hrc-lab <overrides>`` (with its ``resume_from``) would fail its resume check today (e.g. the run's
+    config is from before keys that exist now), or None when it would pass."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.errors import HydraException
+
+    from hrc_lab.cli import check_resumable
+
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            cfg = compose("config", overrides=overrides)
+        check_resumable(validate_config(cfg), cfg)
+    except (ConfigError, HydraException) as err:
+        return str(err).splitlines()[0]
+    finally:
+        GlobalHydra.instance().clear()
+    return None
+
+
+def job_of(run) -> frozenset:
+    """What makes two runs the same job: their resolved config (params), ``resume_from`` aside."""
+    return frozenset((key, value) for key, value in run.data.params.items() if key != "resume_from")
+
+
+def resumable(tracking_uri: str) -> list[tuple[str, str]]:
+    """(run id, command) of every KILLED or FAILED job run that no run resumed, of a job (config) no FINISHED run
+    did and that today's config can resume, oldest first. Each is printed with its command; a run today's config
+    cannot resume is printed with the reason."""
+    os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
+    client = MlflowClient(resolve_tracking_uri(tracking_uri))
+    ended = [run for status in ("KILLED", "FAILED") for run in runs_where(client, f"attributes.status = '{status}'")]
+    finished = runs_where(client, "attributes.status = 'FINISHED'")
+    resumed = {run.data.tags.get("resumed_from") for run in [*ended, *finished, *running_runs(client)]}
+    done = {job_of(run) for run in finished}
+    found = []
+    for run in sorted(ended, key=lambda run: run.info.start_time):
+        if "experiment" not in run.data.tags or run.data.tags.get("kind") == "summary":
+            continue  # not a job's run
+        if run.info.run_id in resumed or job_of(run) in done:
+            continue
+        overrides = [*job_overrides(client, run), f"resume_from={run.info.run_id}"]
+        reason = why_not_resumable(overrides)
+        if reason is not None:
+            print(f"{run.info.status.lower():7}  {run.info.run_name}: cannot resume today ({reason})")
+            continue
+        command = " ".join(["hrc-lab", "hydra.mode=RUN", *overrides])
+        found.append((run.info.run_id, command))
+        print(f"{run.info.status.lower():7}  {run.info.run_name}\n  {command}")
+    return found
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="hrc-lab-runs", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -75,7 +147,11 @@ def main(argv: list[str] | None = None) -> None:
     stale_cmd.add_argument("--dry-run", action="store_true", help="only list them")
     stale_cmd.add_argument("--other-hosts-older-than", type=float, default=None, metavar="HOURS",
                            help="also mark runs of other hosts started more than HOURS ago")
+    commands.add_parser("resumable", help="list the killed or failed runs left to resume, with the commands")
     args = parser.parse_args(argv)
+    if args.command == "resumable":
+        print(f"{len(resumable(args.tracking_uri))} run(s) to resume")
+        return
     found = stale(args.tracking_uri, args.dry_run, args.other_hosts_older_than)
     print(f"{len(found)} stale run(s){' (dry run)' if args.dry_run else ''}")
 

@@ -3,6 +3,7 @@ exit 143/130, stale RUNNING runs, checkpoints that resume to the same result, ru
 
 from __future__ import annotations
 
+import contextlib
 import http.server
 import os
 import re
@@ -25,7 +26,7 @@ from hrc_lab.interrupts import RunInterrupted, signals_raise
 from hrc_lab.kernels import cpu_kernels
 from hrc_lab.registry import ConfigError
 from hrc_lab.run_naming import run_name, variant_of
-from hrc_lab.runs_cli import stale
+from hrc_lab.runs_cli import resumable, stale
 from hrc_lab.tracking import RunTracker, process_identity
 from hrc_lab.training import FixedStepDataModule, RandomState, RunCheckpoint, SupervisedModule, Trainer
 
@@ -258,6 +259,39 @@ def test_resume_from_is_checked_before_work(compose_config, tmp_path):
     unknown = compose_config(*overrides, f"resume_from={'0' * 32}")
     with pytest.raises(ConfigError, match="resume_from: no MLflow run"):
         check_resumable(validate_config(unknown), unknown)
+
+
+def test_resumable_lists_the_killed_jobs_left_with_their_commands(compose_config, tmp_path, capsys):
+    """Listed: a KILLED run nothing resumed or replaced, with the command that resumes it. Not listed: a killed run
+    a later run resumed, one whose config a FINISHED run did, and one today's config cannot resume (its logged
+    config is not what its overrides compose to now: the reason is printed)."""
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    base = ["experiment=ch4/table_4_1", f"logger.tracking_uri={uri}", f"logger.artifact_root={tmp_path}/art"]
+
+    def job(overrides: list[str], ending: str, logged: list[str] | None = None, parent: str | None = None) -> str:
+        cfg = compose_config(*(logged if logged is not None else overrides))
+        tracker = RunTracker(validate_config(cfg).logger, "ch4/table_4_1", "job", {"experiment": "ch4/table_4_1"},
+                             parent_run_id=parent)
+        with contextlib.suppress(RunInterrupted), tracker:
+            tracker.log_config(cfg)
+            tracker.log_text("\n".join(f"- {o}" for o in overrides), "hydra/overrides.yaml")
+            if ending == "KILLED":
+                raise RunInterrupted(signal.SIGTERM)
+        return tracker.run_id
+
+    left = job([*base, "seed=1"], "KILLED")
+    resumed = job([*base, "seed=2"], "KILLED")
+    killed_again = job([*base, "seed=2", f"resume_from={resumed}"], "KILLED", parent=resumed)
+    job([*base, "seed=3"], "KILLED")
+    job([*base, "seed=3"], "FINISHED")
+    stale_config = job([*base, "seed=4"], "KILLED", logged=[*base, "seed=4", "trainer.max_epochs=3"])
+
+    found = dict(resumable(uri))
+    assert set(found) == {left, killed_again}
+    assert found[left] == " ".join(["hrc-lab", "hydra.mode=RUN", *base, "seed=1", f"resume_from={left}"])
+    assert found[killed_again].endswith(f"seed=2 resume_from={killed_again}")
+    printed = capsys.readouterr().out
+    assert f"cannot resume today (resume_from: run {stale_config} had another config: trainer.max_epochs" in printed
 
 
 TINY_JOB = ["experiment=ch4/table_4_1", "hydra.mode=RUN", "env=package_to_order_2of3", "reasoning=ours", "seed=0",
