@@ -18,6 +18,7 @@ import os
 import socket
 import tempfile
 import time
+from pathlib import Path
 
 import yaml
 from mlflow.entities import ViewType
@@ -80,7 +81,8 @@ def stale(tracking_uri: str, dry_run: bool, other_hosts_hours: float | None) -> 
 def job_overrides(client: MlflowClient, run) -> list[str]:
     """The overrides of ``run``'s job (its ``hydra/overrides.yaml``), ``resume_from`` left out."""
     with tempfile.TemporaryDirectory() as tmp:
-        overrides = yaml.safe_load(open(client.download_artifacts(run.info.run_id, "hydra/overrides.yaml", tmp)))
+        path = Path(client.download_artifacts(run.info.run_id, "hydra/overrides.yaml", tmp))
+        overrides = yaml.safe_load(path.read_text())
     return [o for o in overrides if not o.startswith("resume_from=")]
 
 
