@@ -82,8 +82,9 @@ EPOCH_METRICS = ("success_rate", "collision_rate", "final_distance", "grip_rate"
 
 
 def resume_agent(ctx: RunContext, env, subtask: int):
-    """With ``resume_from``: the killed run's latest agent of ``subtask`` (with its saved buffers), or None when
-    that run saved none."""
+    """With ``resume_from``: the latest agent of ``subtask`` (with its saved buffers) of the killed run, or of the
+    run it resumed when it saved none (:meth:`~hrc_lab.tracking.RunTracker.resume_checkpoint`); None when no run of
+    that chain saved one."""
     from hrc_lab.rl.agent import AGENT_FILE, BUFFER_FILE, DEMO_BUFFER_FILE, load_agent
 
     if not ctx.cfg.resume_from:
