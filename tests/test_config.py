@@ -43,6 +43,8 @@ def test_every_experiment_config_composes_and_validates(compose_config, experime
         ("experiment=ch3/table_3_1 env=error_correction_place env.sim.case=2", "env.sim.case"),
         ("experiment=ch3/fig_3_13 rl.n_envs=0", "rl.n_envs"),
         ("experiment=ch3/fig_3_13 rl.cycles_per_epoch=0", "rl.cycles_per_epoch"),
+        ("experiment=ch3/fig_3_13 protocol.subgoal_path=joints", "protocol.subgoal_path"),
+        ("experiment=ch3/table_3_1 protocol.subgoal_path=lip", "protocol.subgoal_path"),
         ("experiment=ch4/table_4_3 rl.episodes_per_cycle=3 rl.n_envs=2", "rl.episodes_per_cycle"),
         ("experiment=rl/fetch protocol.env_id=FetchJuggle-v4", "protocol.env_id"),
     ],

@@ -97,6 +97,25 @@ def test_designed_subgoals_are_the_experts(demo):
     assert np.allclose(subgoals[0, 0], first[0])
 
 
+def test_placing_subgoals_from_the_commanded_lip_end_where_the_expert_placed(demo):
+    """The servo lags one control step, so the episode's last placing stage, which ends as the expert's command
+    reaches the place pose, ends with the measured lip above it (Algorithm 1's guide then held parts 1.4-2.3 cm
+    too high); ``lip_target`` re-samples the commanded lip's path (a step earlier, as it leads), whose last point is
+    the lowest the expert commanded in the stage: its place pose, also where the expert lifts off afterwards."""
+    demo, env = demo
+    bounds, measured = stage_subgoals(demo, env.stage_label, 5, "resample")
+    _, commanded = stage_subgoals(demo, env.stage_label, 5, "resample", path="lip_target")
+    placing = [i for i, (_, stage, _, _) in enumerate(bounds) if stage == PLACE]
+    assert len(placing) == 2
+    for i in placing:
+        start, end = bounds[i, 2], min(bounds[i, 3], len(demo))
+        assert commanded[i, -1, 2] == pytest.approx(demo.obs["lip_target_pos"][start:end, 2].min(), abs=1e-3)
+    last = placing[-1]
+    assert commanded[last, -1, 2] < measured[last, -1, 2] - 0.005  # the measured lip still 1-3 cm above it
+    with pytest.raises(ValueError, match="sub-goal path must be one of"):
+        stage_subgoals(demo, env.stage_label, 5, "resample", path="joints")
+
+
 def test_collect_job_writes_demos_and_metrics(run_job, base_run_name):
     job = run_job("experiment=data/collect", "env=error_correction_one_object_case2", "protocol.episodes=2",
                   "protocol.subgoals_per_stage=5", "protocol.subgoal_mode=resample")

@@ -89,3 +89,15 @@ def test_a_changed_nested_list_is_pinned_whole():
     logged = {"grasp.anchors.0.0": "24", "grasp.anchors.0.1": "40", "grasp.anchors.1.0": "56",
               "grasp.anchors.1.1": "80", "grasp.steps": "3000"}
     assert _list_override(logged, "grasp.anchors") == "[[24,40],[56,80]]"
+
+
+def test_a_key_added_with_a_new_default_pins_what_runs_before_it_ran_with():
+    """Algorithm 1's protocol.subgoal_path came with the default lip_target; runs that did not log it ran with eef
+    (the schema field's ``unlogged``), so they read as that ablation, not as the default."""
+    job = "experiment=ch3/fig_3_13 env=error_correction_one_object_case1 rl.lam=0.7 seed=0"
+    before = {key: value for key, value in logged_run(job).items() if key != "param.protocol.subgoal_path"}
+    assert pinned_settings(pd.Series(before)) == ["protocol.subgoal_path=eef"]
+    assert pinned_settings(pd.Series(logged_run(job))) == []
+    # a key whose schema does not say what came before is not compared
+    table = {key: value for key, value in logged_run().items() if key != "param.protocol.subgoal_path"}
+    assert pinned_settings(pd.Series(table)) == []

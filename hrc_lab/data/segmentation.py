@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import ruptures as rpt
 
+from hrc_lab.motion.configs import SUBGOAL_PATHS
+
 PICK, PLACE = 0, 1
 
 
@@ -91,28 +93,33 @@ def resample(points: np.ndarray, k: int) -> np.ndarray:
 
 
 def stage_subgoals(demo, label_of: Callable[[int, int], int], k: int, mode: str = "resample",
-                   penalty: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+                   penalty: float = 1e-3, path: str = "eef") -> tuple[np.ndarray, np.ndarray]:
     """Segment a demo into stages and give every stage ``k`` sub-goals.
 
     ``mode="resample"`` (Ch.3): stages split where the object starts to move (picking ends at the grip, so its
-    last sub-goal is the part's top face), each stage's end-effector path re-sampled to ``k`` points.
+    last sub-goal is the part's top face), each stage's end-effector path (``path``, a key of
+    :data:`SUBGOAL_PATHS`; the commanded lip's one step earlier, as it leads the measured one by a step) re-sampled
+    to ``k`` points.
     ``mode="designed"`` (Ch.4, k = 3): the designed sub-goals the expert recorded for that stage.
     Returns ``bounds`` (S, 4) rows of (object, stage, start, end) and ``subgoals`` (S, k, 3).
     """
     if mode not in ("resample", "designed"):
         raise ValueError(f"mode must be 'resample' or 'designed', got '{mode}'")
+    if path not in SUBGOAL_PATHS:
+        raise ValueError(f"sub-goal path must be one of {list(SUBGOAL_PATHS)}, got '{path}'")
     pick_ends = "contact" if mode == "resample" else "lift"
     stages = detect_stages(demo.obs["object_pos"].reshape(len(demo), -1, 3), penalty, pick_ends)
-    eef = demo.obs["robot0_eef_pos"]
+    lip = demo.obs[SUBGOAL_PATHS[path]]
+    lead = int(path == "lip_target")  # the command leads the measured lip by one control step
     bounds, points = [], []
     for s in stages:
         if mode == "resample":
-            path = eef[min(s.start + 1, len(eef) - 1) : s.end + 1]
+            stage_path = lip[min(s.start + 1 - lead, len(lip) - 1) : s.end + 1 - lead]
             if s.stage == PICK and pick_ends == "contact":  # end at the grip: the path's lowest point
-                path = path[: int(np.argmin(path[:, 2])) + 1]
-            if len(path) == 0:
+                stage_path = stage_path[: int(np.argmin(stage_path[:, 2])) + 1]
+            if len(stage_path) == 0:
                 continue  # a change point at the stage's start (e.g. a part nudged as the cup arrives): no path
-            points.append(resample(path, k))
+            points.append(resample(stage_path, k))
         else:
             steps = demo.stage_labels == label_of(s.obj, s.stage)
             targets = [demo.subgoals[steps & (demo.subgoal_indices == i)] for i in range(k)]

@@ -26,7 +26,7 @@ def table_3_1(ctx: RunContext) -> dict[str, float]:
     env = ENVS.build(config, seed=ctx.seed)
     demos = correction_demos(env, protocol.demos, protocol.subgoals_per_stage, protocol.segmentation_penalty,
                              f"demos {config.cell}", protocol.placement_noise, ctx.rng(5), protocol.action_noise,
-                             ctx.rng(6))
+                             ctx.rng(6), protocol.subgoal_path)
 
     def train(data: list) -> tuple:
         return train_two_level(ctx.cfg.motion, env, data, protocol.stage_starts, protocol.subgoals_per_stage,
@@ -99,7 +99,7 @@ def dagger_collector(ctx: RunContext):
     return lambda models: takeover_demos(env, correction_loop(protocol, models, placement_oracle=False),
                                          protocol.dagger_episodes, protocol.subgoals_per_stage,
                                          protocol.segmentation_penalty, f"dagger {config.cell}",
-                                         protocol.placement_noise, rng)
+                                         protocol.placement_noise, rng, protocol.subgoal_path)
 
 
 def stage_metrics(stages: pd.DataFrame, ctx: RunContext) -> dict[str, float]:

@@ -48,7 +48,8 @@ def train_guide(ctx: RunContext):
     protocol = ctx.cfg.protocol
     env = ENVS.build(ctx.cfg.env, seed=ctx.seed)
     demos = correction_demos(env, protocol.demos, protocol.subgoals_per_stage, protocol.segmentation_penalty,
-                             f"demos {ctx.cfg.env.cell}", protocol.placement_noise, ctx.rng(5))
+                             f"demos {ctx.cfg.env.cell}", protocol.placement_noise, ctx.rng(5),
+                             subgoal_path=protocol.subgoal_path)
     if not demos:
         raise RuntimeError(f"no successful expert demonstration in {protocol.demos} for {ctx.cfg.env.cell}")
     classifier, planner, ndp = train_two_level(ctx.cfg.motion, env, demos, protocol.stage_starts,

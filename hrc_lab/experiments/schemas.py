@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from hrc_lab.env.fetch import FETCH_ENV_IDS
 from hrc_lab.env.robot.settings import CELL_CAMERA, YAW_ORDERS
 from hrc_lab.grasp.configs import GRASPS
-from hrc_lab.motion.configs import STAGE_LABELS, STAGE_STARTS
+from hrc_lab.motion.configs import STAGE_LABELS, STAGE_STARTS, SUBGOAL_PATHS
 from hrc_lab.reasoning.configs import CH4 as REASONING_CH4
 from hrc_lab.reasoning.configs import CH5 as REASONING_CH5
 from hrc_lab.reasoning.configs import REASONERS
@@ -412,6 +412,11 @@ class Table43Protocol:
 PROTOCOLS.register("ch4_table_4_3", Table43Protocol, "hrc_lab.experiments.ch4_tamp:table_4_3")
 
 
+def check_subgoal_path(path: str) -> None:
+    if path not in SUBGOAL_PATHS:
+        raise ValueError(f"protocol.subgoal_path must be one of {list(SUBGOAL_PATHS)}, got '{path}'")
+
+
 @dataclass
 class Table31Protocol:
     """Two-level planner on the error-correction cases: ``demos`` expert demonstrations (thesis: 20 per case),
@@ -447,8 +452,12 @@ class Table31Protocol:
     action_noise: float = 0.0
     dagger_rounds: int = 0
     dagger_episodes: int = 20
+    # whose path the sub-goals are re-sampled from (hrc_lab.motion.configs.SUBGOAL_PATHS): the measured lip, as
+    # every Table 3.1 run so far; lip_target, Algorithm 1's guide's default (GuidedRLProtocol), is an ablation here
+    subgoal_path: str = "eef"
 
     def __post_init__(self) -> None:
+        check_subgoal_path(self.subgoal_path)
         if self.dagger_rounds < 0:
             raise ValueError(f"protocol.dagger_rounds must be >= 0, got {self.dagger_rounds}")
         if self.dagger_episodes < 1:
@@ -522,8 +531,15 @@ class GuidedRLProtocol:
     # error), so the last epoch's SR (final_success_rate) moved by 0.1-0.2 between neighbouring epochs; 100 halve
     # that. 0: none
     final_eval_episodes: int = 100
+    # whose path the guide's sub-goals are re-sampled from (hrc_lab.motion.configs.SUBGOAL_PATHS). lip_target: the
+    # lip at the commanded joints, the same lip the guide steers (HRCGoalEnv.lip) and its dynamic planner learns
+    # from; with eef (the measured lip, Table 3.1's; the runs before 2026-12-06, which did not log this key) the last
+    # placing sub-goal sat 1.4-2.3 cm above the expert's place pose, the guide held the part there and never placed
+    # it within delta_r 1 cm (docs/chapters/ch3_rl.md)
+    subgoal_path: str = field(default="lip_target", metadata={"unlogged": "eef"})
 
     def __post_init__(self) -> None:
+        check_subgoal_path(self.subgoal_path)
         for key in ("expert_demos", "final_eval_episodes"):
             if getattr(self, key) < 0:
                 raise ValueError(f"protocol.{key} must be >= 0, got {getattr(self, key)}")

@@ -13,6 +13,12 @@ MOTIONS = Registry("motion")
 STAGE_STARTS = ("demonstrated", "executed")
 # What names the object a Ch.3 picking stage goes for (hrc_lab.motion.two_level.picking_label)
 STAGE_LABELS = ("classifier", "picking_classifier", "ground_truth")
+# Whose path a Ch.3 stage's re-sampled sub-goals come from (hrc_lab.data.segmentation.stage_subgoals): "eef", the lip
+# as measured (robosuite's robot0_eef_pos), or "lip_target", the lip at the commanded joints, where the demonstrator
+# was going. The servo lags about one control step, so while the expert descends the measured lip is 2-3.5 cm above
+# the commanded one, and a stage that ends in motion (the last placement: the expert releases once its command
+# reaches the place pose) ends that far above where the expert placed.
+SUBGOAL_PATHS = {"eef": "robot0_eef_pos", "lip_target": "lip_target_pos"}
 # What the Ch.3 sub-goal planner observes besides r (hrc_lab.motion.two_level.correction_input)
 PLANNER_INPUTS = ("full", "selected")
 # What the neural dynamic planner's training sub-goal s is (hrc_lab.motion.two_level.dynamics_pairs)

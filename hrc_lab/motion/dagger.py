@@ -31,12 +31,14 @@ def dagger(train: Callable, collect: Callable | None, demos: list, rounds: int) 
 
 
 def takeover_demos(env, loop: Callable, n: int, subgoals_per_stage: int, segmentation_penalty: float, desc: str,
-                   placement_noise: float = 0.0, rng: np.random.Generator | None = None) -> list:
+                   placement_noise: float = 0.0, rng: np.random.Generator | None = None,
+                   subgoal_path: str = "eef") -> list:
     """DAgger's expert labels in ``n`` fresh scenes of ``env``: ``loop(env, manipulations=1)`` (the learned
     two-level planner, :func:`~hrc_lab.motion.two_level.run_correction`) picks and places the first object, then
     the scripted expert (aiming its placements with ``placement_noise``, as in
     :func:`~hrc_lab.motion.demonstrations.correction_demos`) moves the objects the loop has not moved, from that
-    state, recorded and segmented into change-point stages with ``subgoals_per_stage`` re-sampled sub-goals (3.3).
+    state, recorded and segmented into change-point stages with ``subgoals_per_stage`` sub-goals re-sampled from
+    the ``subgoal_path`` lip's path (3.3).
     Kept: the expert's demonstrations whose objects end within the cell's delta_r of their goals without a
     collision, with a picking and a placing stage per object it moved. A scene gives none when the loop failed its
     first manipulation (no later stage to label) or the case has one manipulation only."""
@@ -53,7 +55,7 @@ def takeover_demos(env, loop: Callable, n: int, subgoals_per_stage: int, segment
         expert = ScriptedExpert(env, placement_noise=placement_noise, rng=rng, objects=rest)
         demo = record_episode(env, expert, reset=False)
         demo.stage_bounds, demo.stage_subgoals = stage_subgoals(
-            demo, env.stage_label, subgoals_per_stage, "resample", segmentation_penalty)
+            demo, env.stage_label, subgoals_per_stage, "resample", segmentation_penalty, subgoal_path)
         placed = np.linalg.norm(env.object_positions()[rest] - env.goals[rest], axis=1) <= env.success_threshold
         if placed.all() and not env.collisions and len(demo.stage_bounds) == 2 * len(rest):
             demos.append(demo)

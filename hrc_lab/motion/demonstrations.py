@@ -14,9 +14,10 @@ MAX_ATTEMPTS_PER_DEMO = 3
 
 def correction_demos(env, n: int, subgoals_per_stage: int, segmentation_penalty: float, desc: str,
                      placement_noise: float = 0.0, rng: np.random.Generator | None = None, action_noise: float = 0.0,
-                     action_rng: np.random.Generator | None = None) -> list:
+                     action_rng: np.random.Generator | None = None, subgoal_path: str = "eef") -> list:
     """Expert demonstrations with their change-point stages (PELT penalty ``segmentation_penalty``) and
-    ``subgoals_per_stage`` re-sampled sub-goals per stage (3.3); the expert aims its placements with
+    ``subgoals_per_stage`` sub-goals per stage re-sampled from the ``subgoal_path`` lip's path (3.3;
+    :data:`~hrc_lab.data.segmentation.SUBGOAL_PATHS`); the expert aims its placements with
     ``placement_noise`` (m) drawn from ``rng``, and its executed joint deltas carry ``action_noise`` (rad, DART)
     drawn from ``action_rng``.
     Kept: the successful demonstrations whose segmentation found a picking and a placing stage per moved object;
@@ -30,7 +31,7 @@ def correction_demos(env, n: int, subgoals_per_stage: int, segmentation_penalty:
         for _ in range(MAX_ATTEMPTS_PER_DEMO * n):
             demo = record_episode(env, expert, action_noise, action_rng)
             demo.stage_bounds, demo.stage_subgoals = stage_subgoals(
-                demo, env.stage_label, subgoals_per_stage, "resample", segmentation_penalty)
+                demo, env.stage_label, subgoals_per_stage, "resample", segmentation_penalty, subgoal_path)
             if demo.success and len(demo.stage_bounds) == 2 * len(env.expert_plan()):
                 demos.append(demo)
                 progress.update()
