@@ -452,8 +452,8 @@ class Table31Protocol:
     action_noise: float = 0.0
     dagger_rounds: int = 0
     dagger_episodes: int = 20
-    # whose path the sub-goals are re-sampled from (hrc_lab.motion.configs.SUBGOAL_PATHS): the measured lip, as
-    # every Table 3.1 run so far; lip_target, Algorithm 1's guide's default (GuidedRLProtocol), is an ablation here
+    # whose path the sub-goals are re-sampled from (hrc_lab.motion.configs.SUBGOAL_PATHS): the measured lip (eef)
+    # or the commanded one (lip_target, Fig. 3.13's guide; GuidedRLProtocol)
     subgoal_path: str = "eef"
 
     def __post_init__(self) -> None:
@@ -531,12 +531,12 @@ class GuidedRLProtocol:
     # error), so the last epoch's SR (final_success_rate) moved by 0.1-0.2 between neighbouring epochs; 100 halve
     # that. 0: none
     final_eval_episodes: int = 100
-    # whose path the guide's sub-goals are re-sampled from (hrc_lab.motion.configs.SUBGOAL_PATHS). lip_target: the
-    # lip at the commanded joints, the same lip the guide steers (HRCGoalEnv.lip) and its dynamic planner learns
-    # from; with eef (the measured lip, Table 3.1's; the runs before 2026-12-06, which did not log this key) the last
-    # placing sub-goal sat 1.4-2.3 cm above the expert's place pose, the guide held the part there and never placed
-    # it within delta_r 1 cm (docs/chapters/ch3_rl.md)
-    subgoal_path: str = field(default="lip_target", metadata={"unlogged": "eef"})
+    # whose path the guide's sub-goals are re-sampled from (hrc_lab.motion.configs.SUBGOAL_PATHS): eef, the measured
+    # lip (Table 3.1's), or lip_target, the lip at the commanded joints, the one the guide steers (HRCGoalEnv.lip)
+    # and its dynamic planner learns from. With eef the last placing sub-goal sits 1.4-2.3 cm above the expert's
+    # place pose, so a guide that tracks its sub-goals holds the part there (Fig. 3.13 sets lip_target; runs
+    # before 2026-12-06 did not log the key and had eef; docs/chapters/ch3_rl.md)
+    subgoal_path: str = field(default="eef", metadata={"unlogged": "eef"})
 
     def __post_init__(self) -> None:
         check_subgoal_path(self.subgoal_path)
