@@ -89,19 +89,3 @@ def test_a_changed_nested_list_is_pinned_whole():
     logged = {"grasp.anchors.0.0": "24", "grasp.anchors.0.1": "40", "grasp.anchors.1.0": "56",
               "grasp.anchors.1.1": "80", "grasp.steps": "3000"}
     assert _list_override(logged, "grasp.anchors") == "[[24,40],[56,80]]"
-
-
-def test_a_key_added_with_a_new_default_pins_what_runs_before_it_ran_with():
-    """Fig. 3.13 sets Algorithm 1's protocol.subgoal_path (added 2026-12-06) to lip_target; runs that did not log it
-    ran with eef (the schema field's ``unlogged``), so they read as that ablation, not as the default, while Fig.
-    3.12's, whose default is eef, stay default runs."""
-    def before(job: str) -> pd.Series:
-        return pd.Series({key: value for key, value in logged_run(job).items()
-                          if key != "param.protocol.subgoal_path"})
-
-    fig_3_13 = "experiment=ch3/fig_3_13 env=error_correction_one_object_case1 rl.lam=0.7 seed=0"
-    assert pinned_settings(before(fig_3_13)) == ["protocol.subgoal_path=eef"]
-    assert pinned_settings(pd.Series(logged_run(fig_3_13))) == []
-    assert pinned_settings(before("experiment=ch3/fig_3_12 env=error_correction_place rl.lam=1 seed=0")) == []
-    # a key whose schema does not say what came before is not compared
-    assert pinned_settings(before(JOB)) == []

@@ -8,8 +8,7 @@ run's variant overrides, as if it had been given on the command line. Such runs 
 ("... — ablation: motion.steps=2000"), whose Reproduce line computes them again, and they share that section with
 runs that are given the same override explicitly. Settings of the neutral groups (where a run logs and writes) are
 never pinned, nor a protocol setting its schema marks as read only by other methods (``read_by``); a setting the run
-did not log (a key added since) is compared with what its schema says runs before it had (``unlogged``), else not
-at all; a run whose overrides no longer compose keeps its variant. The other
+did not log (a key added since) is not compared; a run whose overrides no longer compose keeps its variant. The other
 way round, an override that today's defaults already give (``motion.steps=6000`` once 6000 is the default) leaves
 the run's variant: such a run is what today's command computes.
 """
@@ -80,33 +79,19 @@ def composed_today(overrides: tuple[str, ...]) -> dict[str, str] | None:
             if key.split(".")[0] not in NEUTRAL_KEYS and not _NEUTRAL_REFERENCE.search(raw.get(key, ""))}
 
 
-def _protocol_field(key: str, protocol: str | None):
-    """The schema field of protocol key ``key`` (``protocol.<name>``) of protocol ``protocol``, or None."""
+def read_by_run(key: str, protocol: str | None, method: str | None) -> bool:
+    """False for a protocol key its schema field marks as read only by other methods (``metadata={"read_by":
+    (...)}``, e.g. Table 4.3's ``drl_demos``, which only DRL's runs read): its change does not change the run."""
     from dataclasses import fields
 
     from hrc_lab.experiments import PROTOCOLS
 
     if not key.startswith("protocol.") or protocol not in PROTOCOLS.names():
-        return None
+        return True
     name = key.split(".")[1]
-    return next((f for f in fields(PROTOCOLS.get(protocol).schema) if f.name == name), None)
-
-
-def read_by_run(key: str, protocol: str | None, method: str | None) -> bool:
-    """False for a protocol key its schema field marks as read only by other methods (``metadata={"read_by":
-    (...)}``, e.g. Table 4.3's ``drl_demos``, which only DRL's runs read): its change does not change the run."""
-    field = _protocol_field(key, protocol)
+    field = next((f for f in fields(PROTOCOLS.get(protocol).schema) if f.name == name), None)
     read_by = field.metadata.get("read_by") if field is not None else None
     return read_by is None or method in read_by
-
-
-def unlogged_value(key: str, protocol: str | None) -> str | None:
-    """What a run that did not log protocol key ``key`` (it ran before the key existed) ran with, as a logged param,
-    when the key's schema field says so (``metadata={"unlogged": value}``, e.g. Algorithm 1's ``subgoal_path``,
-    added with a new default); None when unknown."""
-    field = _protocol_field(key, protocol)
-    value = field.metadata.get("unlogged") if field is not None else None
-    return None if value is None else str(value)
 
 
 def _override_value(value: str) -> str:
@@ -157,12 +142,8 @@ def pinned_settings(row: pd.Series) -> list[str]:
         return []
     logged = {key[len(PARAM_PREFIX):]: value for key, value in row.items()
               if key.startswith(PARAM_PREFIX) and isinstance(value, str)}
-    protocol = logged.get("protocol.name")
-    for key in today.keys() - logged.keys():  # keys added since the run: what it ran with, where the schema says
-        if (before := unlogged_value(key, protocol)) is not None:
-            logged[key] = before
     changed = sorted(key for key, value in today.items() if key in logged and logged[key] != value[:MAX_PARAM]
-                     and read_by_run(key, protocol, row.get("method")))
+                     and read_by_run(key, logged.get("protocol.name"), row.get("method")))
     pins: dict[str, str] = {}
     for key in changed:
         parts = key.split(".")
