@@ -453,7 +453,7 @@ class Table31Protocol:
     dagger_rounds: int = 0
     dagger_episodes: int = 20
     # whose path the sub-goals are re-sampled from (hrc_lab.motion.configs.SUBGOAL_PATHS): the measured lip (eef)
-    # or the commanded one (lip_target, Fig. 3.13's guide; GuidedRLProtocol)
+    # or the commanded one (lip_target; GuidedRLProtocol says what it changes for Algorithm 1's guide)
     subgoal_path: str = "eef"
 
     def __post_init__(self) -> None:
