@@ -262,6 +262,23 @@ def test_her_paper_random_actions_replace_the_noisy_policy_in_a_random_eps_share
             assert np.all(np.abs(draws.mean(0)) < 0.1) and np.all(np.abs(draws.std(0) - 3 ** -0.5) < 0.06)
 
 
+def test_guided_episodes_without_exploration_act_with_the_current_policy(env):
+    """rl.guided_exploration=false (Algorithm 1's guided branch: "Select action a_t according to current policy"):
+    in a guided episode the sampled action is the policy's own, without Gaussian noise or random actions; the
+    unguided episodes (and every episode with the default) still explore."""
+    obs = {k: v[None] for k, v in env.reset(seed=3)[0].items()}
+    for lam, exploration, noiseless in ((1.0, False, True), (0.0, False, False), (1.0, True, False)):
+        cfg = RLConfig(**{**TINY, "guidance": "ndp", "guided_exploration": exploration, "random_eps": 0.3})
+        agent = build_guided_ddpg_her(cfg, GuidedEnv(env, FarGuide(), lam, cfg.delta_g, seed=0), seed=0)
+        learn_episodes(agent, 2)
+        agent.learning_starts, agent._last_obs = 0, obs
+        policy = agent.policy.scale_action(agent.predict(obs, deterministic=True)[0])
+        draws = np.array([agent._sample_action(0, agent.action_noise)[1][0] for _ in range(50)])
+        assert np.allclose(draws, policy, atol=1e-6) == noiseless, (lam, exploration)
+    with pytest.raises(ValueError, match="rl.guided_exploration=false needs guided episodes"):
+        RLConfig(guided_exploration=False)
+
+
 def test_her_paper_action_penalty_pulls_the_actor_towards_zero_where_the_critic_is_flat(env):
     sizes = {}
     for action_l2 in (0.0, 1.0):

@@ -90,6 +90,7 @@ def ddpg_her_kwargs(cfg: RLConfig, env: gym.Env | VecEnv, seed: int) -> dict[str
         "bc_pretrain_steps": cfg.bc_pretrain_steps,
         "critic_warmup_steps": cfg.critic_warmup_steps,
         "guided_episodes": cfg.guided_episodes,
+        "guided_exploration": cfg.guided_exploration,
         "seed": seed,
         "device": "cpu",
         "verbose": 0,

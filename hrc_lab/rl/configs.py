@@ -131,6 +131,11 @@ class RLConfig:
     # like the agent's own (the thesis' reading: one buffer R); ``demos`` also puts each guided episode into the
     # demonstration buffer, so the guide's corrected actions are cloned under the Q-filter
     guided_episodes: str = "replay"
+    # Algorithm 1's guided branch: "Select action a_t according to current policy" (the pure-RL branch: "Pure RL
+    # exploration"). true: the agent's action in a guided episode carries the exploration noise too (action_noise_std,
+    # random_eps); false: it is the current policy's action, corrected where it strays beyond delta_g, so only the
+    # unguided episodes (a share 1 - lam) explore
+    guided_exploration: bool = True
     # --- HER (ref. [19]: k = 4 goals per transition, "future" strategy) ---
     n_sampled_goal: int = 4
     goal_selection_strategy: str = "future"
@@ -211,6 +216,8 @@ class RLConfig:
             raise ValueError(f"rl.guidance must be one of {list(GUIDANCES)}, got '{self.guidance}'")
         if not 0 <= self.lam <= 1:
             raise ValueError(f"rl.lam must be in [0, 1], got {self.lam}")
+        if not self.guided_exploration and self.guidance == "none":
+            raise ValueError("rl.guided_exploration=false needs guided episodes (rl.guidance ndp or ndp_direction)")
         if self.stage_labels not in STAGE_LABELS:
             raise ValueError(f"rl.stage_labels must be one of {list(STAGE_LABELS)}, got '{self.stage_labels}'")
 

@@ -25,7 +25,8 @@ demonstrations and undoes the cloning).
 
 Executed actions: when an env wrapper replaced the policy's action (Algorithm 1's guidance,
 :class:`~hrc_lab.rl.guidance.GuidedEnv`), ``info["executed_action"]`` is what the replay buffer stores. With
-``guided_episodes="demos"`` the guided episodes also enter the demonstration buffer.
+``guided_episodes="demos"`` the guided episodes also enter the demonstration buffer, and with
+``guided_exploration=False`` the policy acts in them without exploration noise (the wrapper's ``guided`` flag).
 
 With the constructor's defaults (no penalty, no random actions, no clipping, targets per step, no demonstrations)
 it is SB3's DDPG.
@@ -74,14 +75,14 @@ class HerDDPG(DDPG):
     def __init__(self, *args, action_l2: float = 0.0, random_eps: float = 0.0, clip_return: bool = False,
                  target_update: str = "step", demo_batch_size: int = 0, bc_weight: float = 0.0,
                  q_filter: bool = False, bc_pretrain_steps: int = 0, critic_warmup_steps: int = 0,
-                 guided_episodes: str = "replay", **kwargs) -> None:
+                 guided_episodes: str = "replay", guided_exploration: bool = True, **kwargs) -> None:
         # validated with the rl config (hrc_lab.rl.configs.RLConfig), which is what builds every agent
         self.action_l2, self.random_eps, self.clip_return = action_l2, random_eps, clip_return
         self.target_update = target_update
         self.demo_batch_size, self.bc_weight, self.q_filter = demo_batch_size, bc_weight, q_filter
         self.bc_pretrain_steps, self.critic_warmup_steps = bc_pretrain_steps, critic_warmup_steps
         self.critic_warmup_until: int | None = None  # the update count until which only the critic learns
-        self.guided_episodes = guided_episodes
+        self.guided_episodes, self.guided_exploration = guided_episodes, guided_exploration
         self.demo_buffer: FilledHerReplayBuffer | None = None
         self._open_demos: dict[int, list[tuple]] = {}  # env index -> the guided episode being collected
         self._statistics_steps = 0  # num_timesteps when the normaliser last took the replay buffer's new rows
@@ -92,12 +93,23 @@ class HerDDPG(DDPG):
 
     def _sample_action(self, learning_starts: int, action_noise=None, n_envs: int = 1) -> tuple[np.ndarray, np.ndarray]:
         action, buffer_action = super()._sample_action(learning_starts, action_noise, n_envs)
-        if self.random_eps > 0 and self.num_timesteps >= learning_starts:
+        if self.num_timesteps < learning_starts:
+            return action, buffer_action
+        quiet = self._noiseless_envs(n_envs)
+        if quiet.any():  # guided episodes without exploration: the current policy's own action
+            policy_action, _ = self.predict(self._last_obs, deterministic=True)
+            buffer_action[quiet] = self.policy.scale_action(policy_action)[quiet]
+        if self.random_eps > 0:
             for i in range(n_envs):  # the action space's generator, which SB3 seeds with the agent's seed
-                if self.action_space.np_random.random() < self.random_eps:
+                if not quiet[i] and self.action_space.np_random.random() < self.random_eps:
                     buffer_action[i] = self.policy.scale_action(self.action_space.sample())
-            action = self.policy.unscale_action(buffer_action)
-        return action, buffer_action
+        return self.policy.unscale_action(buffer_action), buffer_action
+
+    def _noiseless_envs(self, n_envs: int) -> np.ndarray:
+        """Which envs run a guided episode whose actions carry no exploration noise (``guided_exploration``)."""
+        if self.guided_exploration or not self.env.has_attr("guided"):  # lam 0: no Algorithm 1 wrapper
+            return np.zeros(n_envs, dtype=bool)
+        return np.array(self.env.get_attr("guided"), dtype=bool)
 
     def _store_transition(self, replay_buffer, buffer_action, new_obs, reward, dones, infos) -> None:
         executed = [info.get("executed_action") for info in infos]
