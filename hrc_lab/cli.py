@@ -33,7 +33,8 @@ log = logging.getLogger("hrc_lab")
 
 
 def check_resumable(validated: ValidatedConfig, cfg: DictConfig) -> None:
-    """``resume_from`` must name a run of this experiment that was killed or failed, with the same config."""
+    """``resume_from`` must name a run of this experiment that was killed or failed, with the same config (keys
+    added since it ran aside)."""
     from mlflow.exceptions import MlflowException
     from mlflow.tracking import MlflowClient
     from omegaconf import OmegaConf
@@ -58,7 +59,9 @@ def check_resumable(validated: ValidatedConfig, cfg: DictConfig) -> None:
                           f"FAILED run can be resumed{hint}")
     ours = {k: v[:6000] for k, v in flatten(OmegaConf.to_container(cfg, resolve=True)).items()}
     theirs = parent.data.params
-    differ = sorted(k for k in set(ours) | set(theirs) if k != "resume_from" and ours.get(k) != theirs.get(k))
+    # a key the run did not log was added since, with a default that keeps what ran before (as the reports read it,
+    # hrc_lab.report.defaults); a key it logged that today's config lacks, or another value, is another config
+    differ = sorted(k for k in theirs if k != "resume_from" and ours.get(k) != theirs[k])
     if differ:
         shown = ", ".join(f"{k}={theirs.get(k)!r} there, {ours.get(k)!r} here" for k in differ[:5])
         raise ConfigError(f"resume_from: run {validated.resume_from} had another config: {shown}")

@@ -18,6 +18,7 @@ import lightning.pytorch as pl
 import pytest
 import torch
 from mlflow.tracking import MlflowClient
+from omegaconf import OmegaConf
 from torch.utils.data import TensorDataset
 
 from hrc_lab.cli import check_resumable
@@ -256,6 +257,20 @@ def test_resume_from_is_checked_before_work(compose_config, tmp_path):
     other = compose_config(*overrides, f"resume_from={parent.run_id}", "trainer.max_epochs=3")
     with pytest.raises(ConfigError, match=r"resume_from: .*trainer\.max_epochs"):
         check_resumable(validate_config(other), other)
+    # a key added since the parent ran (absent from its params) is not compared; a key it had that is gone is
+    for retired, resumes in (({}, True), ({"retired_knob": 1}, False)):
+        older = OmegaConf.create(OmegaConf.to_container(compose_config(*overrides), resolve=True))  # unstructured
+        del older.trainer["max_epochs"]
+        older.trainer.update(retired)
+        with pytest.raises(RunInterrupted), RunTracker(validated.logger, "ch4/table_4_1", "job", tags) as run:
+            run.log_config(older)
+            raise RunInterrupted(signal.SIGTERM)
+        today = compose_config(*overrides, f"resume_from={run.run_id}")
+        if resumes:
+            check_resumable(validate_config(today), today)
+        else:
+            with pytest.raises(ConfigError, match=r"trainer\.retired_knob='1' there, None here"):
+                check_resumable(validate_config(today), today)
     unknown = compose_config(*overrides, f"resume_from={'0' * 32}")
     with pytest.raises(ConfigError, match="resume_from: no MLflow run"):
         check_resumable(validate_config(unknown), unknown)
