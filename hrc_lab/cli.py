@@ -33,8 +33,8 @@ log = logging.getLogger("hrc_lab")
 
 
 def check_resumable(validated: ValidatedConfig, cfg: DictConfig) -> None:
-    """``resume_from`` must name a run of this experiment that was killed or failed, with the same config (keys
-    added since it ran aside)."""
+    """``resume_from`` must name a run of this experiment that was killed or failed, not tagged ``invalidated``
+    (results known to be wrong, the tag says why), with the same config (keys added since it ran aside)."""
     from mlflow.exceptions import MlflowException
     from mlflow.tracking import MlflowClient
     from omegaconf import OmegaConf
@@ -51,6 +51,9 @@ def check_resumable(validated: ValidatedConfig, cfg: DictConfig) -> None:
     if parent.data.tags.get("experiment") != cfg.name:
         raise ConfigError(f"resume_from: run {validated.resume_from} belongs to experiment "
                           f"{parent.data.tags.get('experiment')!r}, not {cfg.name!r}")
+    if "invalidated" in parent.data.tags:
+        raise ConfigError(f"resume_from: run {validated.resume_from} is invalidated "
+                          f"({parent.data.tags['invalidated']}); start the job afresh")
     if parent.info.status in ("FINISHED", "RUNNING"):
         hint = ""
         if parent.info.status == "RUNNING":

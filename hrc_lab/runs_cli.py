@@ -114,8 +114,8 @@ def job_of(run) -> frozenset:
 
 def resumable(tracking_uri: str) -> list[tuple[str, str]]:
     """(run id, command) of every KILLED or FAILED job run that no run resumed, of a job (config) no FINISHED run
-    did and that today's config can resume, oldest first. Each is printed with its command; a run today's config
-    cannot resume is printed with the reason."""
+    did, not tagged ``invalidated`` and that today's config can resume, oldest first. Each is printed with its
+    command; a run today's config cannot resume, or an invalidated one, is printed with the reason."""
     os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
     client = MlflowClient(resolve_tracking_uri(tracking_uri))
     ended = [run for status in ("KILLED", "FAILED") for run in runs_where(client, f"attributes.status = '{status}'")]
@@ -127,6 +127,9 @@ def resumable(tracking_uri: str) -> list[tuple[str, str]]:
         if "experiment" not in run.data.tags or run.data.tags.get("kind") == "summary":
             continue  # not a job's run
         if run.info.run_id in resumed or job_of(run) in done:
+            continue
+        if "invalidated" in run.data.tags:
+            print(f"{run.info.status.lower():7}  {run.info.run_name}: invalidated ({run.data.tags['invalidated']})")
             continue
         overrides = [*job_overrides(client, run), f"resume_from={run.info.run_id}"]
         reason = why_not_resumable(overrides)

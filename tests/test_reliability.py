@@ -278,8 +278,8 @@ def test_resume_from_is_checked_before_work(compose_config, tmp_path):
 
 def test_resumable_lists_the_killed_jobs_left_with_their_commands(compose_config, tmp_path, capsys):
     """Listed: a KILLED run nothing resumed or replaced, with the command that resumes it. Not listed: a killed run
-    a later run resumed, one whose config a FINISHED run did, and one today's config cannot resume (its logged
-    config is not what its overrides compose to now: the reason is printed)."""
+    a later run resumed, one whose config a FINISHED run did, one today's config cannot resume (its logged
+    config is not what its overrides compose to now: the reason is printed) and an invalidated one."""
     uri = f"sqlite:///{tmp_path}/mlflow.db"
     base = ["experiment=ch4/table_4_1", f"logger.tracking_uri={uri}", f"logger.artifact_root={tmp_path}/art"]
 
@@ -300,6 +300,8 @@ def test_resumable_lists_the_killed_jobs_left_with_their_commands(compose_config
     job([*base, "seed=3"], "KILLED")
     job([*base, "seed=3"], "FINISHED")
     stale_config = job([*base, "seed=4"], "KILLED", logged=[*base, "seed=4", "trainer.max_epochs=3"])
+    invalid = job([*base, "seed=5"], "KILLED")
+    MlflowClient(uri).set_tag(invalid, "invalidated", "a bug, fixed since")
 
     found = dict(resumable(uri))
     assert set(found) == {left, killed_again}
@@ -307,6 +309,10 @@ def test_resumable_lists_the_killed_jobs_left_with_their_commands(compose_config
     assert found[killed_again].endswith(f"seed=2 resume_from={killed_again}")
     printed = capsys.readouterr().out
     assert f"cannot resume today (resume_from: run {stale_config} had another config: trainer.max_epochs" in printed
+    assert "job: invalidated (a bug, fixed since)" in printed  # and not in found, above
+    again = compose_config(*base, "seed=5", f"resume_from={invalid}")
+    with pytest.raises(ConfigError, match=r"is invalidated \(a bug, fixed since\); start the job afresh"):
+        check_resumable(validate_config(again), again)
 
 
 TINY_JOB = ["experiment=ch4/table_4_1", "hydra.mode=RUN", "env=package_to_order_2of3", "reasoning=ours", "seed=0",
