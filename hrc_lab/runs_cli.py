@@ -108,7 +108,8 @@ def why_not_resumable(overrides: list[str]) -> str | None:
 
 
 def job_of(run) -> frozenset:
-    """What makes two runs the same job: their resolved config (params), ``resume_from`` aside."""
+    """What makes two runs the same job: their resolved config (params), ``resume_from`` aside. A run did an older
+    run's job when its job holds the older one's (keys added since aside, as ``resume_from`` reads them)."""
     return frozenset((key, value) for key, value in run.data.params.items() if key != "resume_from")
 
 
@@ -126,7 +127,7 @@ def resumable(tracking_uri: str) -> list[tuple[str, str]]:
     for run in sorted(ended, key=lambda run: run.info.start_time):
         if "experiment" not in run.data.tags or run.data.tags.get("kind") == "summary":
             continue  # not a job's run
-        if run.info.run_id in resumed or job_of(run) in done:
+        if run.info.run_id in resumed or any(job_of(run) <= job for job in done):
             continue
         if "invalidated" in run.data.tags:
             print(f"{run.info.status.lower():7}  {run.info.run_name}: invalidated ({run.data.tags['invalidated']})")

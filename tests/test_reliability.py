@@ -278,13 +278,18 @@ def test_resume_from_is_checked_before_work(compose_config, tmp_path):
 
 def test_resumable_lists_the_killed_jobs_left_with_their_commands(compose_config, tmp_path, capsys):
     """Listed: a KILLED run nothing resumed or replaced, with the command that resumes it. Not listed: a killed run
-    a later run resumed, one whose config a FINISHED run did, one today's config cannot resume (its logged
-    config is not what its overrides compose to now: the reason is printed) and an invalidated one."""
+    a later run resumed, one whose config a FINISHED run did (keys added since aside), one today's config cannot
+    resume (its logged config is not what its overrides compose to now: the reason is printed) and an invalidated
+    one."""
     uri = f"sqlite:///{tmp_path}/mlflow.db"
     base = ["experiment=ch4/table_4_1", f"logger.tracking_uri={uri}", f"logger.artifact_root={tmp_path}/art"]
 
-    def job(overrides: list[str], ending: str, logged: list[str] | None = None, parent: str | None = None) -> str:
+    def job(overrides: list[str], ending: str, logged: list[str] | None = None, parent: str | None = None,
+            added_since: str | None = None) -> str:
         cfg = compose_config(*(logged if logged is not None else overrides))
+        if added_since:  # a trainer key the run's code did not have yet
+            cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
+            del cfg.trainer[added_since]
         tracker = RunTracker(validate_config(cfg).logger, "ch4/table_4_1", "job", {"experiment": "ch4/table_4_1"},
                              parent_run_id=parent)
         with contextlib.suppress(RunInterrupted), tracker:
@@ -301,6 +306,8 @@ def test_resumable_lists_the_killed_jobs_left_with_their_commands(compose_config
     job([*base, "seed=3"], "FINISHED")
     stale_config = job([*base, "seed=4"], "KILLED", logged=[*base, "seed=4", "trainer.max_epochs=3"])
     invalid = job([*base, "seed=5"], "KILLED")
+    job([*base, "seed=6"], "KILLED", added_since="max_epochs")  # done since by a run that logs one key more
+    job([*base, "seed=6"], "FINISHED")
     MlflowClient(uri).set_tag(invalid, "invalidated", "a bug, fixed since")
 
     found = dict(resumable(uri))
