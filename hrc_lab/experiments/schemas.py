@@ -535,7 +535,7 @@ class GuidedRLProtocol:
     # lip (Table 3.1's), or lip_target, the lip at the commanded joints, the one the guide steers (HRCGoalEnv.lip)
     # and its dynamic planner learns from. With eef the last placing sub-goal sits 1.4-2.3 cm above the expert's
     # place pose, so a guide that tracks its sub-goals holds the part there: hrc_lab's guide alone
-    # (motion=tc_vi_object) placed within delta_r 1 cm in 0.00-0.15 of one-object episodes with eef, 0.75-0.90 with
+    # (motion=tc_vi_object) placed within delta_r 1 cm in 0.00-0.10 of one-object episodes with eef, 0.75-0.90 with
     # lip_target; the thesis' planner (the default, motion=tc_vi) and Fig. 3.12's direction-only one stop far
     # earlier either way (docs/chapters/ch3_rl.md), so eef stays their default
     subgoal_path: str = "eef"

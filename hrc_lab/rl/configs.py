@@ -134,7 +134,9 @@ class RLConfig:
     # Algorithm 1's guided branch: "Select action a_t according to current policy" (the pure-RL branch: "Pure RL
     # exploration"). true: the agent's action in a guided episode carries the exploration noise too (action_noise_std,
     # random_eps); false: it is the current policy's action, corrected where it strays beyond delta_g, so only the
-    # unguided episodes (a share 1 - lam) explore
+    # unguided episodes (a share 1 - lam) explore. Measured (one object, lam 0.7, delta_g 0.05, no scripted
+    # demonstrations, seed 0): final policy SR 0.01 against 0.00 with the noise; within delta_g the policy's own
+    # action, not its noise, is what spoils the placement (docs/chapters/ch3_rl.md)
     guided_exploration: bool = True
     # --- HER (ref. [19]: k = 4 goals per transition, "future" strategy) ---
     n_sampled_goal: int = 4
