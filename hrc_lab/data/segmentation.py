@@ -109,8 +109,8 @@ def stage_subgoals(demo, label_of: Callable[[int, int], int], k: int, mode: str 
         raise ValueError(f"sub-goal path must be one of {list(SUBGOAL_PATHS)}, got '{path}'")
     pick_ends = "contact" if mode == "resample" else "lift"
     stages = detect_stages(demo.obs["object_pos"].reshape(len(demo), -1, 3), penalty, pick_ends)
-    lip = demo.obs[SUBGOAL_PATHS[path]]
-    lead = int(path == "lip_target")  # the command leads the measured lip by one control step
+    key, lead = SUBGOAL_PATHS[path]  # a stage's path starts and ends ``lead`` steps earlier than the measured lip's
+    lip = demo.obs[key]
     bounds, points = [], []
     for s in stages:
         if mode == "resample":

@@ -18,7 +18,8 @@ STAGE_LABELS = ("classifier", "picking_classifier", "ground_truth")
 # was going. The servo lags about one control step, so while the expert descends the measured lip is 2-3.5 cm above
 # the commanded one, and a stage that ends in motion (the last placement: the expert releases once its command
 # reaches the place pose) ends that far above where the expert placed.
-SUBGOAL_PATHS = {"eef": "robot0_eef_pos", "lip_target": "lip_target_pos"}
+# Each: (its demo observation key, the control steps it leads the measured lip by).
+SUBGOAL_PATHS = {"eef": ("robot0_eef_pos", 0), "lip_target": ("lip_target_pos", 1)}
 # What the Ch.3 sub-goal planner observes besides r (hrc_lab.motion.two_level.correction_input)
 PLANNER_INPUTS = ("full", "selected")
 # What the neural dynamic planner's training sub-goal s is (hrc_lab.motion.two_level.dynamics_pairs)

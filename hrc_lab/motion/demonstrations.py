@@ -17,7 +17,7 @@ def correction_demos(env, n: int, subgoals_per_stage: int, segmentation_penalty:
                      action_rng: np.random.Generator | None = None, subgoal_path: str = "eef") -> list:
     """Expert demonstrations with their change-point stages (PELT penalty ``segmentation_penalty``) and
     ``subgoals_per_stage`` sub-goals per stage re-sampled from the ``subgoal_path`` lip's path (3.3;
-    :data:`~hrc_lab.data.segmentation.SUBGOAL_PATHS`); the expert aims its placements with
+    :data:`~hrc_lab.motion.configs.SUBGOAL_PATHS`); the expert aims its placements with
     ``placement_noise`` (m) drawn from ``rng``, and its executed joint deltas carry ``action_noise`` (rad, DART)
     drawn from ``action_rng``.
     Kept: the successful demonstrations whose segmentation found a picking and a placing stage per moved object;
