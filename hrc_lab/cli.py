@@ -39,7 +39,7 @@ def check_resumable(validated: ValidatedConfig, cfg: DictConfig) -> None:
     from mlflow.tracking import MlflowClient
     from omegaconf import OmegaConf
 
-    from hrc_lab.tracking import flatten, resolve_tracking_uri
+    from hrc_lab.tracking import changed_settings, flatten, resolve_tracking_uri
 
     client = MlflowClient(resolve_tracking_uri(validated.logger.tracking_uri))
     try:
@@ -60,11 +60,9 @@ def check_resumable(validated: ValidatedConfig, cfg: DictConfig) -> None:
             hint = " (if its process is gone, `hrc-lab-runs stale` marks it KILLED)"
         raise ConfigError(f"resume_from: run {validated.resume_from} is {parent.info.status}; only a KILLED or "
                           f"FAILED run can be resumed{hint}")
-    ours = {k: v[:6000] for k, v in flatten(OmegaConf.to_container(cfg, resolve=True)).items()}
+    ours = flatten(OmegaConf.to_container(cfg, resolve=True))
     theirs = parent.data.params
-    # a key the run did not log was added since, with a default that keeps what ran before (as the reports read it,
-    # hrc_lab.report.defaults); a key it logged that today's config lacks, or another value, is another config
-    differ = sorted(k for k in theirs if k != "resume_from" and ours.get(k) != theirs[k])
+    differ = [key for key in changed_settings(theirs, ours) if key != "resume_from"]
     if differ:
         shown = ", ".join(f"{k}={theirs.get(k)!r} there, {ours.get(k)!r} here" for k in differ[:5])
         raise ConfigError(f"resume_from: run {validated.resume_from} had another config: {shown}")

@@ -27,7 +27,7 @@ from mlflow.tracking import MlflowClient
 from hrc_lab.config import ConfigError, default_tracking_uri, validate_config
 from hrc_lab.processes import process_start
 from hrc_lab.run_naming import CONF_DIR
-from hrc_lab.tracking import resolve_tracking_uri
+from hrc_lab.tracking import changed_settings, resolve_tracking_uri
 
 
 def runs_where(client: MlflowClient, query: str) -> list:
@@ -107,10 +107,10 @@ def why_not_resumable(overrides: list[str]) -> str | None:
     return None
 
 
-def job_of(run) -> frozenset:
+def job_of(run) -> dict[str, str]:
     """What makes two runs the same job: their resolved config (params), ``resume_from`` aside. A run did an older
-    run's job when its job holds the older one's (keys added since aside, as ``resume_from`` reads them)."""
-    return frozenset((key, value) for key, value in run.data.params.items() if key != "resume_from")
+    run's job when no setting the older one logged changed (:func:`hrc_lab.tracking.changed_settings`)."""
+    return {key: value for key, value in run.data.params.items() if key != "resume_from"}
 
 
 def resumable(tracking_uri: str) -> list[tuple[str, str]]:
@@ -122,12 +122,12 @@ def resumable(tracking_uri: str) -> list[tuple[str, str]]:
     ended = [run for status in ("KILLED", "FAILED") for run in runs_where(client, f"attributes.status = '{status}'")]
     finished = runs_where(client, "attributes.status = 'FINISHED'")
     resumed = {run.data.tags.get("resumed_from") for run in [*ended, *finished, *running_runs(client)]}
-    done = {job_of(run) for run in finished}
+    done = [job_of(run) for run in finished]
     found = []
     for run in sorted(ended, key=lambda run: run.info.start_time):
         if "experiment" not in run.data.tags or run.data.tags.get("kind") == "summary":
             continue  # not a job's run
-        if run.info.run_id in resumed or any(job_of(run) <= job for job in done):
+        if run.info.run_id in resumed or any(not changed_settings(job_of(run), job) for job in done):
             continue
         if "invalidated" in run.data.tags:
             print(f"{run.info.status.lower():7}  {run.info.run_name}: invalidated ({run.data.tags['invalidated']})")

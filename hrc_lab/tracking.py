@@ -106,6 +106,17 @@ def ensure_experiment(client: MlflowClient, name: str, artifact_root: str) -> st
         return experiment.experiment_id
 
 
+MAX_PARAM = 6000  # MLflow keeps the first 6000 characters of a param (RunTracker.log_config)
+
+
+def changed_settings(logged: dict[str, str], config: dict[str, str]) -> list[str]:
+    """The keys a run logged (``logged``: its params) to which ``config`` (a flattened config, :func:`flatten`) gives
+    another value, or which it lacks; sorted. A key the run did not log was added since it ran, with a default that
+    keeps what ran before, and is not compared: the one rule by which a resume, a report and ``hrc-lab-runs`` read an
+    older run under today's config."""
+    return sorted(key for key, value in logged.items() if key not in config or config[key][:MAX_PARAM] != value)
+
+
 def flatten(node, prefix: str = "") -> dict[str, str]:
     """Dotted keys of a resolved config, for MLflow params."""
     out: dict[str, str] = {}
@@ -198,7 +209,7 @@ class RunTracker:
     # logging -------------------------------------------------------------------------------------------------
     def log_config(self, cfg: DictConfig) -> None:
         resolved = OmegaConf.to_container(cfg, resolve=True)
-        params = [Param(k, v[:6000]) for k, v in flatten(resolved).items()]
+        params = [Param(k, v[:MAX_PARAM]) for k, v in flatten(resolved).items()]
         for start in range(0, len(params), 100):
             self.client.log_batch(self.run_id, params=params[start : start + 100])
         self.log_text(OmegaConf.to_yaml(cfg, resolve=True), "config/resolved.yaml")

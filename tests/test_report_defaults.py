@@ -6,6 +6,7 @@ from hrc_lab.report.build import ABLATION_MARK, moved_headings
 from hrc_lab.report.defaults import PARAM_PREFIX, composed_today, pin_changed_defaults, pinned_settings
 from hrc_lab.report.sections import Section
 from hrc_lab.run_naming import variant_of
+from hrc_lab.tracking import MAX_PARAM, changed_settings
 
 JOB = "experiment=ch3/table_3_1 motion=tc_vi env=error_correction_one_object_case1 seed=1"
 
@@ -89,3 +90,13 @@ def test_a_changed_nested_list_is_pinned_whole():
     logged = {"grasp.anchors.0.0": "24", "grasp.anchors.0.1": "40", "grasp.anchors.1.0": "56",
               "grasp.anchors.1.1": "80", "grasp.steps": "3000"}
     assert _list_override(logged, "grasp.anchors") == "[[24,40],[56,80]]"
+
+
+def test_one_rule_reads_an_older_run_under_today_s_config():
+    """changed_settings: what the run logged is compared, a key added since is not, a key gone since is a change,
+    and a value is compared as MLflow keeps it (its first MAX_PARAM characters)."""
+    long = "x" * (MAX_PARAM + 10)
+    logged = {"motion.steps": "2000", "seed": "1", "gone": "1", "long": long[:MAX_PARAM]}
+    today = {"motion.steps": "6000", "seed": "1", "added_since": "0", "long": long}
+    assert changed_settings(logged, today) == ["gone", "motion.steps"]
+    assert changed_settings({}, today) == []

@@ -22,10 +22,9 @@ import pandas as pd
 from omegaconf import OmegaConf, open_dict
 
 from hrc_lab.run_naming import CONF_DIR, NEUTRAL_KEYS, variant_of
-from hrc_lab.tracking import flatten
+from hrc_lab.tracking import changed_settings, flatten
 
 PARAM_PREFIX = "param."  # params (the resolved config, dotted keys) are columns "param.<key>"
-MAX_PARAM = 6000  # MLflow keeps the first 6000 characters of a param (hrc_lab.tracking.RunTracker.log_config)
 _NEUTRAL_REFERENCE = re.compile(r"\$\{(" + "|".join(NEUTRAL_KEYS) + r")\.")
 
 
@@ -142,8 +141,9 @@ def pinned_settings(row: pd.Series) -> list[str]:
         return []
     logged = {key[len(PARAM_PREFIX):]: value for key, value in row.items()
               if key.startswith(PARAM_PREFIX) and isinstance(value, str)}
-    changed = sorted(key for key, value in today.items() if key in logged and logged[key] != value[:MAX_PARAM]
-                     and read_by_run(key, logged.get("protocol.name"), row.get("method")))
+    compared = {key: value for key, value in logged.items() if key in today}  # today holds no neutral settings
+    changed = [key for key in changed_settings(compared, today)
+               if read_by_run(key, logged.get("protocol.name"), row.get("method"))]
     pins: dict[str, str] = {}
     for key in changed:
         parts = key.split(".")
