@@ -17,6 +17,7 @@ from hrc_lab.report.runs import (  # noqa: E402
     PARAM_PREFIX,
     amount,
     histories,
+    keyed,
     over_seeds,
     setting_number,
     setting_values,
@@ -227,8 +228,10 @@ def fig_3_13(runs: pd.DataFrame) -> Section:
 
 @register_section("fig_3_12")
 def fig_3_12(runs: pd.DataFrame) -> Section:
-    intro = ("Place and stack: DDPG + HER guided by the direction-only neural dynamic planner (λ > 0; "
-             f"`motion.ndp.mode` {amount(runs, 'motion.ndp.mode', '')}) vs unguided (λ = 0). " + guide_text(runs) + " "
+    intro = ("Place and stack: DDPG + HER guided (λ > 0) by the neural dynamic planner in mode "
+             f"{keyed(runs, 'motion.ndp.mode')} (the thesis' outputs directions only), which corrects an action "
+             f"that would leave the lip more than δg = {amount(runs, 'rl.delta_g', 'm')} from its sub-goal, "
+             f"vs unguided (λ = 0); δr = {amount(runs, 'rl.delta_r', 'm')}. " + guide_text(runs) + " "
              + epoch_text(runs))
     thesis = ("Thesis (Fig. 3.12): the DRL agent guided by the direction-only NDP learns both tasks faster than "
               "unguided DRL (curves only; no final numbers are stated).")
