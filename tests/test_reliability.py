@@ -394,6 +394,18 @@ def test_shared_facts_are_interpolations(compose_config):
     assert perception.perception.window == 30
 
 
+def test_jobs_and_sweeps_started_in_the_same_second_get_their_own_folders(compose_config):
+    """Two jobs or two one-job sweeps launched together (one per core) must not write each other's checkpoints and
+    .hydra files: their output folders differ below the second."""
+    def folders() -> tuple[Path, Path]:
+        hydra_cfg = compose_config("experiment=ch4/table_4_1", return_hydra_config=True).hydra
+        return Path(hydra_cfg.run.dir), Path(hydra_cfg.sweep.dir)
+
+    (run_a, sweep_a), (run_b, sweep_b) = folders(), folders()  # well within one second
+    assert run_a != run_b and run_a.parent == run_b.parent
+    assert sweep_a != sweep_b and sweep_a.parent == sweep_b.parent
+
+
 def test_a_users_own_config_file_makes_a_variant(compose_config, tmp_path):
     from hydra.core.hydra_config import HydraConfig
 
