@@ -275,6 +275,15 @@ def test_guided_episodes_without_exploration_act_with_the_current_policy(env):
         policy = agent.policy.scale_action(agent.predict(obs, deterministic=True)[0])
         draws = np.array([agent._sample_action(0, agent.action_noise)[1][0] for _ in range(50)])
         assert np.allclose(draws, policy, atol=1e-6) == noiseless, (lam, exploration)
+    # which episodes are guided comes from the reset infos, without a call into the env (its process)
+    cfg = RLConfig(**{**TINY, "guidance": "ndp", "guided_exploration": False})
+    agent = build_guided_ddpg_her(cfg, GuidedEnv(env, FarGuide(), 0.5, cfg.delta_g, seed=0), seed=0)
+    flags = []
+    for episodes in range(1, 9):
+        learn_episodes(agent, episodes)  # episodes in all
+        flags.append(bool(agent._noiseless_envs(1)[0]))
+        assert flags[-1] == agent.env.get_attr("guided")[0]
+    assert 0 < sum(flags) < len(flags)
     with pytest.raises(ValueError, match="rl.guided_exploration=false needs guided episodes"):
         RLConfig(guided_exploration=False)
 

@@ -26,7 +26,8 @@ demonstrations and undoes the cloning).
 Executed actions: when an env wrapper replaced the policy's action (Algorithm 1's guidance,
 :class:`~hrc_lab.rl.guidance.GuidedEnv`), ``info["executed_action"]`` is what the replay buffer stores. With
 ``guided_episodes="demos"`` the guided episodes also enter the demonstration buffer, and with
-``guided_exploration=False`` the policy acts in them without exploration noise (the wrapper's ``guided`` flag).
+``guided_exploration=False`` the policy acts in them without exploration noise (the ``guided`` flag of each
+env's reset info).
 
 With the constructor's defaults (no penalty, no random actions, no clipping, targets per step, no demonstrations)
 it is SB3's DDPG.
@@ -85,6 +86,7 @@ class HerDDPG(DDPG):
         self.guided_episodes, self.guided_exploration = guided_episodes, guided_exploration
         self.demo_buffer: FilledHerReplayBuffer | None = None
         self._open_demos: dict[int, list[tuple]] = {}  # env index -> the guided episode being collected
+        self._guided_now: np.ndarray | None = None  # per env: is its running episode guided (from the reset infos)
         self._statistics_steps = 0  # num_timesteps when the normaliser last took the replay buffer's new rows
         self._update_values: dict[str, list[float]] = {}  # per-update diagnostics since update_diagnostics()
         super().__init__(*args, **kwargs)
@@ -107,11 +109,21 @@ class HerDDPG(DDPG):
 
     def _noiseless_envs(self, n_envs: int) -> np.ndarray:
         """Which envs run a guided episode whose actions carry no exploration noise (``guided_exploration``)."""
-        if self.guided_exploration or not self.env.has_attr("guided"):  # lam 0: no Algorithm 1 wrapper
+        if self.guided_exploration or self._guided_now is None:
             return np.zeros(n_envs, dtype=bool)
-        return np.array(self.env.get_attr("guided"), dtype=bool)
+        return self._guided_now.copy()
+
+    def _setup_learn(self, total_timesteps, callback=None, reset_num_timesteps=True, *args, **kwargs):
+        resets = reset_num_timesteps or self._last_obs is None  # when SB3's setup resets the envs
+        setup = super()._setup_learn(total_timesteps, callback, reset_num_timesteps, *args, **kwargs)
+        if resets:  # each env's reset info says whether its episode is guided (no call into the env processes)
+            self._guided_now = np.array([info.get("guided", False) for info in self.env.reset_infos], dtype=bool)
+        return setup
 
     def _store_transition(self, replay_buffer, buffer_action, new_obs, reward, dones, infos) -> None:
+        if self._guided_now is not None:  # an env that ended its episode has reset into its next one
+            for i in np.flatnonzero(dones):
+                self._guided_now[i] = self.env.reset_infos[i].get("guided", False)
         executed = [info.get("executed_action") for info in infos]
         if any(a is not None for a in executed):  # a wrapper acted instead of the policy: store what it executed
             buffer_action = np.array([buffer_action[i] if a is None else a for i, a in enumerate(executed)],

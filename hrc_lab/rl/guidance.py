@@ -142,8 +142,8 @@ class GuidedEnv(gym.Wrapper):
     """Algorithm 1 around a :class:`~hrc_lab.rl.goal_env.HRCGoalEnv` (module docstring): at each reset the episode
     is guided with probability ``lam`` (drawn from a generator seeded with ``seed``); in a guided episode the
     action the policy proposes is replaced by the guide's when the lip it leads to is farther than ``delta_g``
-    from the guide's sub-goal. ``info`` says ``guided``, ``corrected`` and, when corrected, the
-    ``executed_action`` (in [-1, 1]), which the agent stores instead of its own
+    from the guide's sub-goal. The reset's ``info`` says ``guided``; each step's says ``guided``, ``corrected``
+    and, when corrected, the ``executed_action`` (in [-1, 1]), which the agent stores instead of its own
     (:class:`~hrc_lab.rl.ddpg.HerDDPG`). A wrapper, so that it runs where its env runs (one process per env with
     ``rl.n_envs`` > 1); the guide is pickled into that process."""
 
@@ -158,7 +158,7 @@ class GuidedEnv(gym.Wrapper):
         self.guided = bool(self.rng.random() < self.lam)
         if self.guided:
             self.guide.reset(self.unwrapped)
-        return obs, info
+        return obs, {**info, "guided": self.guided}
 
     def correction(self, action: np.ndarray) -> np.ndarray | None:
         """The guide's action when Algorithm 1 corrects ``action`` in this step, else None."""
