@@ -7,8 +7,8 @@ longer exists. Runs started on other hosts cannot be checked from here: they are
 ``--other-hosts-older-than HOURS``.
 
 ``hrc-lab-runs resumable`` lists the KILLED and FAILED runs of jobs not yet done: no run names them in
-``resumed_from`` and no FINISHED run had the same config (the check ``resume_from`` makes). Each comes with the
-command that continues it from its last checkpoint (``resume_from``, docs/interrupted.md).
+``resumed_from`` and no FINISHED or RUNNING run has the same config (the check ``resume_from`` makes). Each comes
+with the command that continues it from its last checkpoint (``resume_from``, docs/interrupted.md).
 """
 
 from __future__ import annotations
@@ -114,20 +114,27 @@ def job_of(run) -> dict[str, str]:
 
 
 def resumable(tracking_uri: str) -> list[tuple[str, str]]:
-    """(run id, command) of every KILLED or FAILED job run that no run resumed, of a job (config) no FINISHED run
-    did, not tagged ``invalidated`` and that today's config can resume, oldest first. Each is printed with its
-    command; a run today's config cannot resume, or an invalidated one, is printed with the reason."""
+    """(run id, command) of every KILLED or FAILED job run that no run resumed, of a job (config) no FINISHED or
+    RUNNING run did or does, not tagged ``invalidated`` and that today's config can resume, oldest first. Each is
+    printed with its command; a run today's config cannot resume, an invalidated one, or one whose job a RUNNING
+    run does now, is printed with the reason."""
     os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
     client = MlflowClient(resolve_tracking_uri(tracking_uri))
     ended = [run for status in ("KILLED", "FAILED") for run in runs_where(client, f"attributes.status = '{status}'")]
     finished = runs_where(client, "attributes.status = 'FINISHED'")
-    resumed = {run.data.tags.get("resumed_from") for run in [*ended, *finished, *running_runs(client)]}
+    running = running_runs(client)
+    resumed = {run.data.tags.get("resumed_from") for run in [*ended, *finished, *running]}
     done = [job_of(run) for run in finished]
     found = []
     for run in sorted(ended, key=lambda run: run.info.start_time):
         if "experiment" not in run.data.tags or run.data.tags.get("kind") == "summary":
             continue  # not a job's run
         if run.info.run_id in resumed or any(not changed_settings(job_of(run), job) for job in done):
+            continue
+        twin = next((other for other in running if not changed_settings(job_of(run), job_of(other))), None)
+        if twin is not None:  # started afresh, not resumed: nothing to do unless that run ends unfinished too
+            print(f"{run.info.status.lower():7}  {run.info.run_name}: its job is running now (run "
+                  f"{twin.info.run_id}; if its process is gone, `hrc-lab-runs stale` first)")
             continue
         if "invalidated" in run.data.tags:
             print(f"{run.info.status.lower():7}  {run.info.run_name}: invalidated ({run.data.tags['invalidated']})")

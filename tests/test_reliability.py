@@ -17,6 +17,7 @@ from pathlib import Path
 import lightning.pytorch as pl
 import pytest
 import torch
+from mlflow.entities import Param
 from mlflow.tracking import MlflowClient
 from omegaconf import OmegaConf
 from torch.utils.data import TensorDataset
@@ -279,8 +280,8 @@ def test_resume_from_is_checked_before_work(compose_config, tmp_path):
 def test_resumable_lists_the_killed_jobs_left_with_their_commands(compose_config, tmp_path, capsys):
     """Listed: a KILLED run nothing resumed or replaced, with the command that resumes it. Not listed: a killed run
     a later run resumed, one whose config a FINISHED run did (keys added since aside), one today's config cannot
-    resume (its logged config is not what its overrides compose to now: the reason is printed) and an invalidated
-    one."""
+    resume (its logged config is not what its overrides compose to now: the reason is printed), an invalidated
+    one and one whose job a RUNNING run does now."""
     uri = f"sqlite:///{tmp_path}/mlflow.db"
     base = ["experiment=ch4/table_4_1", f"logger.tracking_uri={uri}", f"logger.artifact_root={tmp_path}/art"]
 
@@ -309,6 +310,10 @@ def test_resumable_lists_the_killed_jobs_left_with_their_commands(compose_config
     job([*base, "seed=6"], "KILLED", added_since="max_epochs")  # done since by a run that logs one key more
     job([*base, "seed=6"], "FINISHED")
     MlflowClient(uri).set_tag(invalid, "invalidated", "a bug, fixed since")
+    restarted = job([*base, "seed=7"], "KILLED")  # its job started afresh, running now
+    client = MlflowClient(uri)
+    twin = client.create_run(client.get_run(restarted).info.experiment_id, tags={"experiment": "ch4/table_4_1"})
+    client.log_batch(twin.info.run_id, params=[Param(k, v) for k, v in client.get_run(restarted).data.params.items()])
 
     found = dict(resumable(uri))
     assert set(found) == {left, killed_again}
@@ -317,6 +322,7 @@ def test_resumable_lists_the_killed_jobs_left_with_their_commands(compose_config
     printed = capsys.readouterr().out
     assert f"cannot resume today (resume_from: run {stale_config} had another config: trainer.max_epochs" in printed
     assert "job: invalidated (a bug, fixed since)" in printed  # and not in found, above
+    assert f"job: its job is running now (run {twin.info.run_id};" in printed
     again = compose_config(*base, "seed=5", f"resume_from={invalid}")
     with pytest.raises(ConfigError, match=r"is invalidated \(a bug, fixed since\); start the job afresh"):
         check_resumable(validate_config(again), again)
