@@ -125,13 +125,14 @@ def resumable(tracking_uri: str) -> list[tuple[str, str]]:
     running = running_runs(client)
     resumed = {run.data.tags.get("resumed_from") for run in [*ended, *finished, *running]}
     done = [job_of(run) for run in finished]
+    doing = [(job_of(run), run) for run in running]
     found = []
     for run in sorted(ended, key=lambda run: run.info.start_time):
         if "experiment" not in run.data.tags or run.data.tags.get("kind") == "summary":
             continue  # not a job's run
         if run.info.run_id in resumed or any(not changed_settings(job_of(run), job) for job in done):
             continue
-        twin = next((other for other in running if not changed_settings(job_of(run), job_of(other))), None)
+        twin = next((other for job, other in doing if not changed_settings(job_of(run), job)), None)
         if twin is not None:  # started afresh, not resumed: nothing to do unless that run ends unfinished too
             print(f"{run.info.status.lower():7}  {run.info.run_name}: its job is running now (run "
                   f"{twin.info.run_id}; if its process is gone, `hrc-lab-runs stale` first)")
