@@ -80,15 +80,26 @@ def test_the_fetch_experiment_validates_and_names_the_task(compose_config):
             validate_config(compose_config("experiment=rl/fetch", override))
 
 
-def test_the_fetch_experiment_runs_end_to_end(run_job):
-    job = run_job("experiment=rl/fetch", "hydra.mode=RUN", "seed=0", "protocol.epochs=1", "rl.cycles_per_epoch=1",
+def test_the_fetch_experiment_runs_end_to_end(run_job, tmp_path):
+    job = run_job("experiment=rl/fetch", "hydra.mode=RUN", "seed=0", "protocol.epochs=2", "rl.cycles_per_epoch=1",
                   "protocol.eval_episodes=2", "rl.net_arch=[16]", "rl.batch_size=16", "rl.demo_batch_size=4",
                   "rl.gradient_steps=2", "rl.buffer_size=1000")
     client, run_id = job.client, job.run.info.run_id
-    for metric in ("success_rate", "final_distance", "train_success_rate", "env_steps_per_s", "updates_per_s"):
-        assert [m.step for m in client.get_metric_history(run_id, metric)] == [1], metric
+    for metric in ("success_rate", "final_distance", "train_success_rate", "env_steps_per_s", "updates_per_s",
+                   "epoch_s"):
+        assert [m.step for m in client.get_metric_history(run_id, metric)] == [1, 2], metric
     assert 0 <= job.metrics["final_success_rate"] <= job.metrics["best_success_rate"] <= 1
-    assert job.metrics["n_episodes"] == 2
+    assert job.metrics["n_episodes"] == 4
+    # the report's anchor section: the curve's last epochs pooled, and the wall time the epochs logged
+    from hrc_lab.report.build import build_topic
+
+    report = build_topic("ch3_rl", job.tracking_uri, tmp_path / "report").read_text()
+    row = next(line for line in report.splitlines() if line.startswith("| FetchReach-v4"))
+    cells = [c.strip() for c in row.strip("|").split("|")]  # task, seeds, episodes, final, last 3, best, wall, ...
+    curve = [m.value for m in client.get_metric_history(run_id, "success_rate")]
+    assert "SR, last 3 epochs" in report and float(cells[4]) == round(sum(curve) / len(curve), 2)
+    wall = sum(m.value for m in client.get_metric_history(run_id, "epoch_s")) / 60
+    assert float(cells[6]) == round(wall)
     assert job.run.data.tags["scenario"] == "FetchReach-v4" and job.run.data.tags["method"] == "ddpg_her"
     assert job.run.info.run_name.startswith("rl/fetch-ddpg_her-FetchReach-v4-seed0")
     assert "agents/fetch/agent.zip" in {a.path for a in client.list_artifacts(run_id, "agents/fetch")}
