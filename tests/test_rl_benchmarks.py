@@ -110,3 +110,46 @@ def test_every_fetch_id_is_made():
         env = make_fetch_env(env_id, seed=0)
         assert env.spec.id == env_id and env.horizon == 50
         env.close()
+
+
+def test_a_killed_fetch_run_resumes_from_its_last_checkpoint(run_job, monkeypatch, tmp_path):
+    """Killed in its second epoch, after the first epoch's checkpoint: resume_from loads that agent, copies the first
+    epoch's curve and trains only the second (each step logged once), and the run finishes with the whole curve."""
+    import signal
+
+    from mlflow.tracking import MlflowClient
+
+    from hrc_lab.interrupts import RunInterrupted
+    from hrc_lab.rl import benchmarks
+
+    tiny = ("experiment=rl/fetch", "hydra.mode=RUN", "seed=0", "protocol.epochs=2", "protocol.checkpoint_every=1",
+            "rl.cycles_per_epoch=1", "protocol.eval_episodes=2", "rl.net_arch=[16]", "rl.batch_size=16",
+            "rl.demo_batch_size=4", "rl.gradient_steps=2", "rl.buffer_size=1000")
+    evaluate, calls = benchmarks.evaluate_fetch, []
+
+    def killed_in_epoch_two(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise RunInterrupted(signal.SIGTERM)
+        return evaluate(*args, **kwargs)
+
+    monkeypatch.setattr(benchmarks, "evaluate_fetch", killed_in_epoch_two)
+    with pytest.raises(RunInterrupted):
+        run_job(*tiny)
+    monkeypatch.setattr(benchmarks, "evaluate_fetch", evaluate)
+    client = MlflowClient(f"sqlite:///{tmp_path / 'runs' / 'mlflow.db'}")  # run_job's store
+    (killed,) = client.search_runs([client.get_experiment_by_name("rl/fetch").experiment_id])
+    assert killed.info.status == "KILLED"
+    parent = killed.info.run_id
+    resumed = run_job(*tiny, f"resume_from={parent}")
+    run_id = resumed.run.info.run_id
+    assert resumed.run.data.tags["resumed_from"] == parent and resumed.run.info.status == "FINISHED"
+    steps = [m.step for m in client.get_metric_history(run_id, "success_rate")]
+    assert sorted(steps) == [1, 2]  # epoch 1 copied, epoch 2 trained: not both trained afresh
+    copied = {m.step: m.value for m in client.get_metric_history(run_id, "success_rate")}
+    assert copied[1] == client.get_metric_history(parent, "success_rate")[0].value
+    # epoch 1's wall time is the killed run's, to the bit: copied, not trained again
+    (first_epoch,) = [m.value for m in client.get_metric_history(run_id, "epoch_s") if m.step == 1]
+    assert first_epoch == client.get_metric_history(parent, "epoch_s")[0].value
+    assert resumed.metrics["best_success_rate"] == max(copied.values())
+    assert resumed.metrics["final_success_rate"] == copied[2] and resumed.metrics["n_episodes"] == 4

@@ -9,7 +9,8 @@ Every epoch logs ``success_rate`` (``info["is_success"]`` at the evaluation epis
 (|achieved - desired goal| then, m), the epoch's training rates (``train_success_rate``, ``train_final_distance``;
 the robot cells' grip, moved, collision and guidance rates are 0 here), ``env_steps_per_s``, ``updates_per_s`` and
 ``epoch_s`` as MLflow metrics with ``step`` = the epoch; the final agent (networks and normaliser, no replay
-buffer) is an artifact.
+buffer) is an artifact, saved every ``protocol.checkpoint_every`` epochs too: a killed run resumed
+(``resume_from=<run id>``) trains on from that agent, with an empty replay buffer, and holds the whole curve.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ AGENT_DIR = "agents/fetch"
 def rl_fetch(ctx: RunContext) -> dict[str, float]:
     """Train DDPG + HER on ``protocol.env_id`` for ``protocol.epochs`` epochs (module docstring); the success rate
     after the last epoch and the best after any epoch."""
-    from hrc_lab.rl.agent import save_agent
+    from hrc_lab.rl.agent import AGENT_FILE, save_agent
     from hrc_lab.rl.benchmarks import train_fetch
     from hrc_lab.rl.trainer import episodes_per_epoch
 
@@ -32,8 +33,13 @@ def rl_fetch(ctx: RunContext) -> dict[str, float]:
         save_agent(agent, ctx.output_dir / AGENT_DIR, replay_buffer=False)
         ctx.tracker.log_artifact(ctx.output_dir / AGENT_DIR, AGENT_DIR)
 
-    curve = train_fetch(protocol.env_id, rl, protocol.epochs, seed=ctx.seed, eval_episodes=protocol.eval_episodes,
-                        log=lambda metrics, epoch: ctx.tracker.log_metrics(metrics, step=epoch), save=save)
+    saved = ctx.tracker.resume_checkpoint(f"{AGENT_DIR}/{AGENT_FILE}") if ctx.cfg.resume_from else None
+    train_fetch(protocol.env_id, rl, protocol.epochs, seed=ctx.seed, eval_episodes=protocol.eval_episodes,
+                log=lambda metrics, epoch: ctx.tracker.log_metrics(metrics, step=epoch), save=save,
+                checkpoint_every=protocol.checkpoint_every, resume=None if saved is None else saved.parent,
+                on_resume=ctx.tracker.copy_history)  # the curve up to the checkpoint, from the runs it continues
+    history = ctx.tracker.client.get_metric_history(ctx.tracker.run_id, "success_rate")
+    curve = [m.value for m in sorted(history, key=lambda m: m.step)]  # resumed epochs included
     return {
         "final_success_rate": float(curve[-1]),
         "best_success_rate": float(max(curve)),

@@ -748,12 +748,15 @@ class RLFetchProtocol:
     # rl.cycles_per_epoch x rl.episodes_per_cycle (100, or 20 with the reference's 10 cycles for FetchReach)
     epochs: int = 50
     eval_episodes: int = 20  # the reference's 10 test rollouts of 2 episodes per worker
+    # the agent (networks, optimisers, normaliser; not the replay buffer) is saved every this many epochs and at
+    # the end; a killed run resumes from the last one (resume_from=<run id>)
+    checkpoint_every: int = 10
 
     def __post_init__(self) -> None:
         if self.env_id not in FETCH_ENV_IDS:
             raise ValueError(f"protocol.env_id: unknown Fetch env id '{self.env_id}'; choose one of "
                              f"{list(FETCH_ENV_IDS)}")
-        for key in ("epochs", "eval_episodes"):
+        for key in ("epochs", "eval_episodes", "checkpoint_every"):
             if getattr(self, key) < 1:
                 raise ValueError(f"protocol.{key} must be >= 1, got {getattr(self, key)}")
 
