@@ -41,6 +41,12 @@ def test_the_wrapper_gives_the_loop_what_it_reads_from_a_goal_env():
     obs, reward, _, _, info = env.step(env.action_space.sample())
     assert {"held", "moved_m", "collided", "goal_distances", "is_success"} <= set(info)
     assert info["goal_distances"][0] == pytest.approx(np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"]))
+    # moved_m: the object's distance from its start; shifted 3 cm in x by hand, it reads 3 cm at the next step
+    joint = env.unwrapped._utils.get_joint_qpos(env.unwrapped.model, env.unwrapped.data, "object0:joint").copy()
+    joint[0] += 0.03
+    env.unwrapped._utils.set_joint_qpos(env.unwrapped.model, env.unwrapped.data, "object0:joint", joint)
+    _, _, _, _, info = env.step(np.zeros(4))
+    assert info["moved_m"] == pytest.approx(0.03, abs=0.005)
     goals = np.stack([obs["achieved_goal"], obs["achieved_goal"]])
     assert list(env.compute_reward(goals, np.stack([obs["desired_goal"], obs["achieved_goal"]]), {})) == [reward, 0]
     env.close()
@@ -109,6 +115,9 @@ def test_every_fetch_id_is_made():
     for env_id in FETCH_ENV_IDS:
         env = make_fetch_env(env_id, seed=0)
         assert env.spec.id == env_id and env.horizon == 50
+        env.reset(seed=0)
+        if not env.has_object:  # FetchReach: nothing to move
+            assert env.step(env.action_space.sample())[-1]["moved_m"] == 0.0
         env.close()
 
 

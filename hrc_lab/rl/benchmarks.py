@@ -6,7 +6,8 @@ the thesis' robot cells, so a result there can be read against a curve nobody he
 - :func:`make_fetch_env`: ``FetchReach-v4``, ``FetchPush-v4`` or ``FetchPickAndPlace-v4`` (50-step episodes) inside
   :class:`FetchEnv`, which gives the loop what it reads from hrc_lab's goal envs: ``horizon`` and
   ``compute_reward`` on the outermost wrapper, and the info keys of :class:`~hrc_lab.rl.agent.EpisodeMetrics`
-  (nothing is held, moved or collided in hrc_lab's sense; ``goal_distances`` is |achieved - desired goal|);
+  (nothing is held or collided in hrc_lab's sense; ``moved_m`` is how far the object is from where the episode
+  started it, 0 in FetchReach, which has none; ``goal_distances`` is |achieved - desired goal|);
 - :func:`train_fetch`: ``epochs`` epochs of the reference loop on ``rl.n_envs`` envs, each followed by
   ``eval_episodes`` episodes of the deterministic policy on a separate env (success: ``info["is_success"]`` at
   the episode's last step, as the reference's test rollouts); returns the per-epoch success rates.
@@ -52,19 +53,30 @@ class FetchEnv(gym.Wrapper):
     """A Fetch env as :mod:`hrc_lab.rl.trainer` and :mod:`hrc_lab.rl.agent` take a goal env: ``horizon`` (the time
     limit, 50 steps) and ``compute_reward`` on this wrapper (gymnasium 1.x wrappers forward no attributes, and
     stable-baselines3's HER buffer and the loop read them from the outermost env), and each step's info with
-    ``held=False``, ``moved_m=0.0``, ``collided=False`` and ``goal_distances=[|achieved - desired goal|]``."""
+    ``held=False``, ``collided=False``, ``goal_distances=[|achieved - desired goal|]`` and ``moved_m``: in the
+    tasks with an object (whose position is the achieved goal) its distance from its position at the reset, so
+    the loop's ``train_moved_rate`` says how often exploration pushed it (HER's relabelled goals teach pushing only
+    from such episodes); 0.0 in FetchReach."""
 
     def __init__(self, env: gym.Env) -> None:
         super().__init__(env)
         self.horizon = int(env.spec.max_episode_steps)
+        self.has_object = bool(env.unwrapped.has_object)
+        self.start: np.ndarray | None = None
 
     def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
         return self.env.unwrapped.compute_reward(achieved_goal, desired_goal, info)
 
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        self.start = np.array(obs["achieved_goal"], copy=True)
+        return obs, info
+
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
         distance = float(np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"]))
-        info = {**info, "held": False, "moved_m": 0.0, "collided": False, "goal_distances": [distance]}
+        moved = float(np.linalg.norm(obs["achieved_goal"] - self.start)) if self.has_object else 0.0
+        info = {**info, "held": False, "moved_m": moved, "collided": False, "goal_distances": [distance]}
         return obs, reward, terminated, truncated, info
 
 
