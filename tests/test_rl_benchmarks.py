@@ -80,6 +80,7 @@ def test_the_fetch_experiment_validates_and_names_the_task(compose_config):
     assert validated.env.env_id == "FetchPush-v4" and validated.env.scenario == "FetchPush-v4"
     assert validated.rl.net_arch == [256, 256, 256] and validated.rl.name == "ddpg_her"
     for override, key in (("protocol.env_id=FetchSlide-v4", "FetchSlide-v4"), ("protocol.epochs=0", "protocol.epochs"),
+                          ("protocol.checkpoint_every=0", "protocol.checkpoint_every"),
                           ("env.env_id=FetchPush-v4", "protocol.env_id"),
                           ("rl=ddpg_her_guided", "rl: protocol rl_fetch runs with rl=ddpg_her")):
         with pytest.raises(ConfigError, match=key):
