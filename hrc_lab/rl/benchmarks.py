@@ -134,9 +134,9 @@ def train_fetch(env_id: str, rl_cfg: RLConfig, epochs: int, seed: int = 0, eval_
     epochs of :func:`~hrc_lab.rl.trainer.train_epochs` on ``rl_cfg.n_envs`` envs; after each, ``eval_episodes``
     episodes of the deterministic policy on a separate env (:func:`evaluate_fetch`). ``log(metrics, epoch)`` gets
     each epoch's metrics (the evaluation's and the loop's: training rates, speeds, ``epoch_s``); ``save(agent)``
-    the agent every ``checkpoint_every`` epochs and at the end (None: only at the end). ``resume``: the folder of an agent
-    :func:`~hrc_lab.rl.agent.save_agent` saved, trained on from the epochs it has (``on_resume(epochs)`` is told
-    how many, before the first). Returns the success rate after each epoch this call trained."""
+    the agent every ``checkpoint_every`` epochs and at the end (None: only at the end). ``resume``: the folder of
+    an agent :func:`~hrc_lab.rl.agent.save_agent` saved, trained on from the epochs it has (``on_resume(epochs)``
+    is told how many, before the first). Returns the success rate after each epoch this call trained."""
     from hrc_lab.rl.agent import build_ddpg_her, load_agent
     from hrc_lab.rl.trainer import completed_epochs, train_epochs, training_envs
 
