@@ -9,8 +9,9 @@ Every epoch logs ``success_rate`` (``info["is_success"]`` at the evaluation epis
 (|achieved - desired goal| then, m), the epoch's training rates (``train_success_rate``, ``train_final_distance``,
 ``train_moved_rate``: episodes that moved the object more than 2 cm; the robot cells' grip, collision and guidance
 rates are 0 here), ``env_steps_per_s``, ``updates_per_s`` and ``epoch_s`` as MLflow metrics with ``step`` = the
-epoch; the final agent (networks and normaliser, no replay buffer) is an artifact, saved every ``protocol.checkpoint_every`` epochs too: a killed run resumed
-(``resume_from=<run id>``) trains on from that agent, with an empty replay buffer, and holds the whole curve.
+epoch; the final agent (networks and normaliser, no replay buffer) is an artifact, saved every
+``protocol.checkpoint_every`` epochs too: a killed run resumed (``resume_from=<run id>``) trains on from that
+agent, with an empty replay buffer, and holds the whole curve.
 """
 
 from __future__ import annotations
