@@ -293,9 +293,9 @@ def fetch(runs: pd.DataFrame) -> Section:
     runs = runs.assign(episodes_per_epoch=per_epoch.values)
     history = histories(runs, "success_rate").merge(runs[["run_id", "scenario", "episodes_per_epoch"]], on="run_id")
     history["episodes"] = history.step * history.episodes_per_epoch
-    last = history.sort_values("step").groupby("run_id").value.apply(lambda v: v.tail(LAST_EPOCHS).mean())
     wall = histories(runs, "epoch_s").groupby("run_id").value.sum() / 60
-    runs = runs.assign(last_epochs_success_rate=runs.run_id.map(last), train_min=runs.run_id.map(wall))
+    runs = runs.assign(last_epochs_success_rate=runs.run_id.map(epochs_sr(runs, history, LAST_EPOCHS)),
+                       train_min=runs.run_id.map(wall))
     tasks = sorted(runs.scenario.unique())
     fig, axes = plt.subplots(1, len(tasks), figsize=(5.5 * len(tasks), 3.6), squeeze=False)
     rows, csv = [], []
