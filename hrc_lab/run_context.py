@@ -49,3 +49,19 @@ class RunContext:
             self.tracker.log_artifact(resume, folder)  # the new run holds every checkpoint it continues from
         return Trainer(**{**settings, **overrides}, logger=self.tracker.lightning_logger(prefix),
                        callbacks=callbacks, resume_checkpoint=resume)
+
+    def resume_agent(self, folder: str, env):
+        """With ``resume_from``: the RL agent saved under ``folder`` of the killed run (or of the run it resumed, when
+        it saved none; :meth:`~hrc_lab.tracking.RunTracker.resume_checkpoint`), with whichever of its buffers were
+        saved beside it, on ``env`` (:func:`~hrc_lab.rl.agent.load_agent`); None without ``resume_from`` or when no
+        run of that chain saved one."""
+        from hrc_lab.rl.agent import AGENT_FILE, BUFFER_FILE, DEMO_BUFFER_FILE, load_agent
+
+        if not self.cfg.resume_from:
+            return None
+        saved = self.tracker.resume_checkpoint(f"{folder}/{AGENT_FILE}")
+        if saved is None:
+            return None
+        for name in (BUFFER_FILE, DEMO_BUFFER_FILE):  # into the same folder, when they exist
+            self.tracker.resume_checkpoint(f"{folder}/{name}")
+        return load_agent(saved.parent, env)

@@ -82,23 +82,6 @@ EPOCH_METRICS = ("success_rate", "collision_rate", "final_distance", "grip_rate"
                  "learning_rate", "subtask")
 
 
-def resume_agent(ctx: RunContext, env, subtask: int):
-    """With ``resume_from``: the latest agent of ``subtask`` (with its saved buffers) of the killed run, or of the
-    run it resumed when it saved none (:meth:`~hrc_lab.tracking.RunTracker.resume_checkpoint`); None when no run of
-    that chain saved one."""
-    from hrc_lab.rl.agent import AGENT_FILE, BUFFER_FILE, DEMO_BUFFER_FILE, load_agent
-
-    if not ctx.cfg.resume_from:
-        return None
-    folder = f"{AGENTS_DIR}/subtask{subtask}"
-    saved = ctx.tracker.resume_checkpoint(f"{folder}/{AGENT_FILE}")
-    if saved is None:
-        return None
-    for name in (BUFFER_FILE, DEMO_BUFFER_FILE):  # into the same folder, when they exist
-        ctx.tracker.resume_checkpoint(f"{folder}/{name}")
-    return load_agent(saved.parent, env)
-
-
 def add_expert_demos(ctx: RunContext, agent, subtask: int) -> None:
     """``protocol.expert_demos`` scripted-expert episodes of ``subtask`` into the agent's demonstration buffer, on
     scenes of their own seed stream (not the training or evaluation scenes)."""
@@ -131,7 +114,7 @@ def train_subtasks(ctx: RunContext) -> dict[str, float]:
     for subtask in range(n_subtasks):
         envs = training_envs(ctx, guide, subtask)
         test = evaluation_env(ctx.cfg.env, rl, ctx.seed, subtask)
-        agent = resume_agent(ctx, envs, subtask)
+        agent = ctx.resume_agent(f"{AGENTS_DIR}/subtask{subtask}", envs)
         if agent is None:
             agent = RLS.build(rl, env=envs, seed=ctx.seed)
             if protocol.expert_demos:

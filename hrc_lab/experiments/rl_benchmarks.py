@@ -24,7 +24,7 @@ AGENT_DIR = "agents/fetch"
 def rl_fetch(ctx: RunContext) -> dict[str, float]:
     """Train DDPG + HER on ``protocol.env_id`` for ``protocol.epochs`` epochs (module docstring); the success rate
     after the last epoch and the best after any epoch."""
-    from hrc_lab.rl.agent import AGENT_FILE, save_agent
+    from hrc_lab.rl.agent import save_agent
     from hrc_lab.rl.benchmarks import train_fetch
     from hrc_lab.rl.trainer import episodes_per_epoch
 
@@ -34,10 +34,9 @@ def rl_fetch(ctx: RunContext) -> dict[str, float]:
         save_agent(agent, ctx.output_dir / AGENT_DIR, replay_buffer=False)
         ctx.tracker.log_artifact(ctx.output_dir / AGENT_DIR, AGENT_DIR)
 
-    saved = ctx.tracker.resume_checkpoint(f"{AGENT_DIR}/{AGENT_FILE}") if ctx.cfg.resume_from else None
     train_fetch(protocol.env_id, rl, protocol.epochs, seed=ctx.seed, eval_episodes=protocol.eval_episodes,
                 log=lambda metrics, epoch: ctx.tracker.log_metrics(metrics, step=epoch), save=save,
-                checkpoint_every=protocol.checkpoint_every, resume=None if saved is None else saved.parent,
+                checkpoint_every=protocol.checkpoint_every, resume=lambda envs: ctx.resume_agent(AGENT_DIR, envs),
                 on_resume=ctx.tracker.copy_history)  # the curve up to the checkpoint, from the runs it continues
     history = ctx.tracker.client.get_metric_history(ctx.tracker.run_id, "success_rate")
     curve = [m.value for m in sorted(history, key=lambda m: m.step)]  # resumed epochs included

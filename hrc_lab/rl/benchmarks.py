@@ -21,7 +21,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -129,15 +128,17 @@ def evaluate_fetch(agent: Any, env: FetchEnv, episodes: int) -> dict[str, float]
 def train_fetch(env_id: str, rl_cfg: RLConfig, epochs: int, seed: int = 0, eval_episodes: int = 10,
                 log: Callable[[dict[str, float], int], None] | None = None,
                 save: Callable[[Any], None] | None = None, checkpoint_every: int | None = None,
-                resume: Path | None = None, on_resume: Callable[[int], None] | None = None) -> list[float]:
+                resume: Callable[[Any], Any] | None = None, on_resume: Callable[[int], None] | None = None
+                ) -> list[float]:
     """Train DDPG + HER (:func:`~hrc_lab.rl.agent.build_ddpg_her` with ``rl_cfg``) on ``env_id`` for ``epochs``
     epochs of :func:`~hrc_lab.rl.trainer.train_epochs` on ``rl_cfg.n_envs`` envs; after each, ``eval_episodes``
     episodes of the deterministic policy on a separate env (:func:`evaluate_fetch`). ``log(metrics, epoch)`` gets
     each epoch's metrics (the evaluation's and the loop's: training rates, speeds, ``epoch_s``); ``save(agent)``
-    the agent every ``checkpoint_every`` epochs and at the end (None: only at the end). ``resume``: the folder of
-    an agent :func:`~hrc_lab.rl.agent.save_agent` saved, trained on from the epochs it has (``on_resume(epochs)``
-    is told how many, before the first). Returns the success rate after each epoch this call trained."""
-    from hrc_lab.rl.agent import build_ddpg_her, load_agent
+    the agent every ``checkpoint_every`` epochs and at the end (None: only at the end). ``resume(envs)``: a saved
+    agent on the training envs, or None (e.g. :meth:`~hrc_lab.run_context.RunContext.resume_agent`), trained on
+    from the epochs it has (``on_resume(epochs)`` is told how many, before the first). Returns the success rate
+    after each epoch this call trained."""
+    from hrc_lab.rl.agent import build_ddpg_her
     from hrc_lab.rl.trainer import completed_epochs, train_epochs, training_envs
 
     if epochs < 1 or eval_episodes < 1:
@@ -153,8 +154,10 @@ def train_fetch(env_id: str, rl_cfg: RLConfig, epochs: int, seed: int = 0, eval_
             log(metrics, epoch)
 
     try:
-        agent = load_agent(resume, envs) if resume is not None else build_ddpg_her(rl_cfg, envs, seed=seed)
-        if resume is not None and on_resume is not None:
+        agent = resume(envs) if resume is not None else None
+        if agent is None:
+            agent = build_ddpg_her(rl_cfg, envs, seed=seed)
+        elif on_resume is not None:
             on_resume(completed_epochs(agent, rl_cfg))
         train_epochs(agent, rl_cfg, epochs, evaluate=lambda agent, epoch: evaluate_fetch(agent, test, eval_episodes),
                      log=record, save=save or (lambda agent: None), checkpoint_every=checkpoint_every or epochs,

@@ -212,17 +212,14 @@ class DRLSystem(TampSystem):
         the training rates, the throughput and ``protocol.drl_eval_episodes`` evaluation episodes go to MLflow, the
         agent to the artifacts (every ``checkpoint_every`` epochs too, from which a killed run resumes)."""
         from hrc_lab.rl import RLS, trainer
-        from hrc_lab.rl.agent import AGENT_FILE, DEMO_BUFFER_FILE, add_demonstrations, evaluate, load_agent, save_agent
+        from hrc_lab.rl.agent import add_demonstrations, evaluate, save_agent
         from hrc_lab.rl.evaluation import evaluation_seed
         from hrc_lab.rl.goal_env import make_goal_env
 
         protocol, rl = ctx.cfg.protocol, ctx.cfg.rl
         envs = trainer.training_envs(trainer.goal_env_factory(ctx.cfg.env, rl, ctx.seed, cases=CASES), rl.n_envs)
-        saved = ctx.tracker.resume_checkpoint(f"{DRL_AGENT_DIR}/{AGENT_FILE}") if ctx.cfg.resume_from else None
-        if saved is not None:
-            ctx.tracker.resume_checkpoint(f"{DRL_AGENT_DIR}/{DEMO_BUFFER_FILE}")
-            agent = load_agent(saved.parent, envs)
-        else:
+        agent = ctx.resume_agent(DRL_AGENT_DIR, envs)
+        if agent is None:
             agent = RLS.build(rl, env=envs, seed=ctx.seed)
             if protocol.drl_demos:
                 demo_env = make_goal_env(ctx.cfg.env, rl, seed=scene_seed(ctx.seed, DRL_DEMO_SCENES),
