@@ -202,3 +202,31 @@ def test_report_names_the_guide_and_the_guide_alone_runs():
     text = guide_text(alone)
     assert "hrc_lab's sub-goal planner (`tc_vi_object`" in text and "the episode's goal object" in text
     assert "measure the guide alone" in text and "measure" not in guide_text(old)
+    assert "closed loop starts it" not in text
+    executed = alone.assign(**{f"{P}protocol.stage_starts.0": ["demonstrated"],
+                               f"{P}protocol.stage_starts.1": ["executed"]})
+    assert "closed loop starts it (`protocol.stage_starts`" in guide_text(executed)
+
+
+def test_report_gives_a_plan_of_several_subtasks_its_sr_by_subtask(monkeypatch):
+    """Two-object runs get each subtask's final-policy SR and last-epoch training SR (means over seeds, in the
+    plan's order); one-subtask runs get no such columns."""
+    import pandas as pd
+
+    from hrc_lab.report import ch3_rl
+    from hrc_lab.report.ch3_rl import curves_section
+
+    # 2 epochs per subtask: steps 1-2 subtask 0, 3-4 subtask 1; the training SR of each subtask's last epoch counts
+    train = pd.DataFrame({"run_id": ["a"] * 4 + ["b"] * 4, "step": [1, 2, 3, 4] * 2,
+                          "value": [0.0, 0.8, 0.5, 0.1, 0.0, 1.0, 0.0, 0.3]})
+    monkeypatch.setattr(ch3_rl, "histories", lambda runs, metric: train)
+    runs = pd.DataFrame({"run_id": ["a", "b"], "scenario": ["two_object_case1"] * 2, "seed": [0, 1],
+                         "param.rl.lam": ["0.7"] * 2, "param.protocol.epochs": ["2"] * 2,
+                         "final_policy_success_rate_subtask0": [0.9, 0.7],
+                         "final_policy_success_rate_subtask1": [0.1, 0.3],
+                         **{c: [0.5, 0.5] for c in ALL_FINAL}})
+    text = curves_section(runs, "t", "intro", "thesis", "x.png").markdown
+    assert "final policy SR by subtask" in text and "| 0.80 / 0.20 " in text and "| 0.90 / 0.20 " in text
+    one = runs.drop(columns=["final_policy_success_rate_subtask1"]).assign(scenario="one_object_case1")
+    monkeypatch.setattr(ch3_rl, "histories", lambda runs, metric: train[train.step <= 2])
+    assert "by subtask" not in curves_section(one, "t", "intro", "thesis", "x.png").markdown

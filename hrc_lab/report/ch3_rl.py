@@ -39,20 +39,35 @@ LAST_EPOCHS = 3  # "SR, last epochs": the evaluations of a subtask's last 3 epoc
 BUDGET = "epochs (Adam step size), demonstrations"
 
 
-def epochs_sr(runs: pd.DataFrame, history: pd.DataFrame, last: int | None = None) -> pd.Series:
-    """Per run: the mean evaluation SR over each subtask's last ``last`` epochs (every epoch: None), averaged over
-    its subtasks (epoch ``k * epochs + e`` is epoch ``e`` of subtask ``k``; :mod:`hrc_lab.experiments.ch3_rl`). One
-    epoch's 20 evaluation episodes move the SR by about ±0.1; three epochs' pooled move it less. Over every epoch it
-    is the area under the learning curve over its length: how fast an arm learns, Fig. 3.12's claim."""
+def subtask_sr(runs: pd.DataFrame, history: pd.DataFrame, last: int | None = None) -> pd.Series:
+    """Per (run, subtask): the mean of ``history`` (one metric's per-epoch values) over the subtask's last ``last``
+    epochs (every epoch: None); epoch ``k * epochs + e`` of a run is epoch ``e`` of subtask ``k``
+    (:mod:`hrc_lab.experiments.ch3_rl`). Empty for runs that logged no epochs or no curve."""
     column = f"{PARAM_PREFIX}protocol.epochs"
     if column not in runs or history.empty:
-        return pd.Series(dtype=float)  # runs that logged no epochs or no curve: no value
+        return pd.Series(dtype=float)
     epochs = pd.to_numeric(runs.set_index("run_id")[column], errors="coerce")
     frame = history.assign(epochs=history.run_id.map(epochs)).dropna(subset=["epochs"])
     frame = frame.assign(subtask=(frame.step - 1) // frame.epochs, epoch=(frame.step - 1) % frame.epochs + 1)
     if last is not None:
         frame = frame[frame.epoch > frame.epochs - last]
-    return frame.groupby(["run_id", "subtask"]).value.mean().groupby("run_id").mean()
+    return frame.groupby(["run_id", "subtask"]).value.mean()
+
+
+def epochs_sr(runs: pd.DataFrame, history: pd.DataFrame, last: int | None = None) -> pd.Series:
+    """Per run: the mean evaluation SR over each subtask's last ``last`` epochs (every epoch: None), averaged over
+    its subtasks (:func:`subtask_sr`). One epoch's 20 evaluation episodes move the SR by about ±0.1; three epochs'
+    pooled move it less. Over every epoch it is the area under the learning curve over its length: how fast an arm
+    learns, Fig. 3.12's claim."""
+    by_subtask = subtask_sr(runs, history, last)
+    return by_subtask.groupby("run_id").mean() if len(by_subtask) else by_subtask
+
+
+def by_subtask(values: pd.DataFrame) -> str:
+    """One value per subtask (columns, in order), each the mean over the rows (seeds), as "0.85 / 0.13"; "–" when
+    no row has one."""
+    means = values.mean()
+    return " / ".join(f"{v:.2f}" for v in means) if len(means) and means.notna().any() else "–"
 
 
 def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str, png: str) -> Section:
@@ -64,6 +79,12 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
                                                     on="run_id")
     runs = runs.assign(last_epochs_success_rate=runs.run_id.map(epochs_sr(runs, history, LAST_EPOCHS)),
                        mean_epochs_success_rate=runs.run_id.map(epochs_sr(runs, history)))
+    # per subtask, where a plan has several: the final policies' SR and the last epoch's training episodes' SR
+    train_by_subtask = subtask_sr(runs, histories(runs, "train_success_rate"), last=1)
+    train_by_subtask = train_by_subtask.unstack() if len(train_by_subtask) else pd.DataFrame()
+    final_by_subtask = sorted((c for c in runs if c.startswith("final_policy_success_rate_subtask")),
+                              key=lambda c: int(c.removeprefix("final_policy_success_rate_subtask")))
+    several_subtasks = train_by_subtask.shape[1] > 1 or len(final_by_subtask) > 1
     scenarios = sorted(runs.scenario.unique())
     fig, axes = plt.subplots(1, len(scenarios), figsize=(5 * len(scenarios), 3.4), squeeze=False)
     rows, csv = [], []
@@ -99,6 +120,10 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
                                   ("mean_env_steps_per_s", "env steps/s"), ("mean_updates_per_s", "updates/s")):
                 digits = 0 if metric.startswith("mean_env") or metric.startswith("mean_up") else 2
                 row[label] = fmt(*spread(done, metric), digits=digits)
+            if several_subtasks:
+                row["final policy SR by subtask"] = by_subtask(done.reindex(columns=final_by_subtask))
+                row["training-episode SR by subtask (last epoch)"] = by_subtask(
+                    train_by_subtask.reindex(done.run_id))
             rows.append(row)
         ax.set_title(scenario.replace("_", " "), fontsize=9)
         ax.set_xlabel("epoch (subtasks in sequence)")
@@ -163,12 +188,17 @@ GUIDE_ALONE_M = 1e-3  # a delta_g below this with lambda 1 corrects every step: 
 
 def guide_text(runs: pd.DataFrame) -> str:
     """The guide of the runs: its sub-goal planner (``motion.name``), what named the object a guided episode goes
-    for (``rl.stage_labels``; runs from before the key: c(x_1)'s label), and, with ``rl.delta_g`` below 1 mm and
+    for (``rl.stage_labels``; runs from before the key: c(x_1)'s label), whether its training pairs also start
+    where the closed loop starts a stage (``protocol.stage_starts``), and, with ``rl.delta_g`` below 1 mm and
     λ = 1, that every step was the guide's."""
     planners = setting_values(runs, "motion.name")
     rules = setting_values(runs, "rl.stage_labels") or ["classifier"]
     text = ("Guide: " + " or ".join(GUIDE_PLANNERS.get(p, f"`{p}`") for p in planners or ["?"])
             + ", going for " + " or ".join(GUIDE_OBJECTS.get(r, f"`rl.stage_labels={r}`") for r in rules) + ".")
+    starts = {v for c in runs if c.startswith(f"{PARAM_PREFIX}protocol.stage_starts.") for v in runs[c].dropna()}
+    if "executed" in starts:
+        text += (" Its training pairs start each stage both where the demonstrator's lip was at the change point and "
+                 "where the closed loop starts it (`protocol.stage_starts`, docs/chapters/ch3_motion.md).")
     delta_g = setting_number(runs, "rl.delta_g")
     if delta_g is not None and delta_g < GUIDE_ALONE_M and set(lam_of(runs)) == {"1"}:
         text += (f" δg = {delta_g:g} m and λ = 1: the guide corrects every step, so these runs measure the guide "
@@ -207,7 +237,8 @@ def epoch_text(runs: pd.DataFrame) -> str:
             "mean over the plan's subtasks; final policy SR: each subtask's last agent on "
             f"{amount(runs, 'protocol.final_eval_episodes', 'held-out scenes')} that no epoch's evaluation saw, "
             f"mean over the plan's subtasks; SR, last {LAST_EPOCHS} epochs: the evaluations of each subtask's last "
-            f"{LAST_EPOCHS} epochs pooled; {over_seeds(runs)}.")
+            f"{LAST_EPOCHS} epochs pooled; by subtask (plans of several): each subtask's value in the plan's "
+            f"order, mean over seeds; {over_seeds(runs)}.")
 
 
 @register_section("fig_3_13")
