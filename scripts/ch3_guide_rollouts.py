@@ -1,0 +1,94 @@
+"""Where does Algorithm 1's guide leave the part, and why? Trains the two-level planner of a Fig. 3.13 run's config
+(the run's seed, its demonstrations; ``--stage-starts`` replaces ``protocol.stage_starts``) and rolls the guide
+alone (every step corrected: lambda 1, delta_g 1e-6) through ``--episodes`` episodes of ``--subtask``, with
+``--steps`` control steps per episode and ``--subgoal-steps`` (H_lo). Per episode it prints, in cm: the planner's
+last sub-goal minus the part's goal (the planner's error), the lip minus that sub-goal (the dynamic planner's),
+the lip minus the part's centre when the cup gripped it (the grip's offset) and the part minus its goal; then the
+success rate. A placing sub-goal is the lip's, so a right one is ~2.2 cm above the goal (the part's half height). Scenes: the run's seed + 1000, not its training scenes.
+
+    .venv/bin/python scripts/ch3_guide_rollouts.py <MLflow run id> --subtask 1 [--episodes 12]
+        [--stage-starts demonstrated,executed] [--steps 40] [--subgoal-steps 4] [--tracking-uri URI]
+"""
+
+import argparse
+import dataclasses
+import os
+import tempfile
+
+import numpy as np
+import torch
+from mlflow.tracking import MlflowClient
+
+from hrc_lab.env import ENVS
+from hrc_lab.motion.demonstrations import correction_demos
+from hrc_lab.motion.training import train_two_level
+from hrc_lab.rl import RLS
+from hrc_lab.rl.goal_env import make_goal_env
+from hrc_lab.rl.guidance import CorrectionGuide, GuidedEnv
+from hrc_lab.tracking import saved_run
+from hrc_lab.training import Trainer
+
+ROLLOUT_SCENES = 1000  # the rollouts' scene seed: the run's seed + this (not its training or evaluation scenes)
+DEMO_STREAM = 5  # the demonstrations' random stream, as hrc_lab.experiments.ch3_rl.train_guide draws them
+
+
+def train_guide(cfg, seed: int, stage_starts: tuple[str, ...]):
+    """Classifier, sub-goal planner and dynamic planner as the run trained them (without logging)."""
+    protocol = cfg.protocol
+    env = ENVS.build(cfg.env, seed=seed)
+    demos = correction_demos(env, protocol.demos, protocol.subgoals_per_stage, protocol.segmentation_penalty,
+                             "demos", protocol.placement_noise, np.random.default_rng([seed, DEMO_STREAM]),
+                             subgoal_path=protocol.subgoal_path)
+    settings = dataclasses.asdict(cfg.trainer)
+    settings.pop("checkpoint_every_n_epochs")
+    settings.update(enable_checkpointing=False, logger=False)
+    return train_two_level(cfg.motion, env, demos, stage_starts, protocol.subgoals_per_stage,
+                           lambda *_: Trainer(**settings), seed)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("run_id")
+    parser.add_argument("--subtask", type=int, required=True)
+    parser.add_argument("--episodes", type=int, default=12)
+    parser.add_argument("--stage-starts", help="comma-separated protocol.stage_starts (default: the run's)")
+    parser.add_argument("--steps", type=int, help="control steps per episode (default: the run's)")
+    parser.add_argument("--subgoal-steps", type=int, help="H_lo (default: the run's)")
+    parser.add_argument("--tracking-uri", default="sqlite:///runs/mlflow.db")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
+    with tempfile.TemporaryDirectory() as tmp:
+        saved = saved_run(MlflowClient(args.tracking_uri), args.run_id, tmp, artifacts="config")
+    cfg = saved.cfg
+    starts = tuple(args.stage_starts.split(",")) if args.stage_starts else tuple(cfg.protocol.stage_starts)
+    classifier, planner, ndp = train_guide(cfg, saved.seed, starts)
+    changes = {k: v for k, v in (("steps_per_subtask", args.steps), ("subgoal_steps", args.subgoal_steps)) if v}
+    rl = RLS.derive(cfg.rl, lam=1.0, delta_g=1e-6, **changes)
+    guide = CorrectionGuide.from_config(rl, classifier, planner, ndp, cfg.protocol.subgoals_per_stage)
+    env = GuidedEnv(make_goal_env(cfg.env, rl, seed=saved.seed + ROLLOUT_SCENES, subtask=args.subtask), guide,
+                    1.0, rl.delta_g, seed=saved.seed)
+    cell, successes = env.unwrapped.cell, []
+    print(f"stage starts {starts}, {rl.steps_per_subtask} steps, H_lo {rl.subgoal_steps}; offsets in cm", flush=True)
+    for episode in range(args.episodes):
+        obs, _ = env.reset()
+        grip = None
+        for _ in range(env.unwrapped.horizon):
+            obs, _, terminated, truncated, info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+            if grip is None and cell.suction.held >= 0:
+                grip = (cell.eef_position() - cell.object_positions()[cell.suction.held]) * 100
+            if terminated or truncated:
+                break
+        goal = obs["desired_goal"][:3]
+        successes.append(bool(info["is_success"]))
+        grip_text = "none" if grip is None else np.round(grip, 1)
+        print(f"episode {episode}: success {successes[-1]}, steps {env.unwrapped.elapsed_steps}, "
+              f"sub-goal - goal {np.round((guide.current - goal) * 100, 1)}, "
+              f"lip - sub-goal {np.round((env.unwrapped.lip() - guide.current) * 100, 1)}, grip {grip_text}, "
+              f"part - goal {np.round((obs['achieved_goal'][:3] - goal) * 100, 1)}", flush=True)
+    print(f"success rate {np.mean(successes):.2f} over {args.episodes} episodes")
+    env.close()
+
+
+if __name__ == "__main__":
+    main()
