@@ -4,7 +4,8 @@ alone (every step corrected: lambda 1, delta_g 1e-6) through ``--episodes`` epis
 ``--steps`` control steps per episode and ``--subgoal-steps`` (H_lo). Per episode it prints, in cm: the planner's
 last sub-goal minus the part's goal (the planner's error), the lip minus that sub-goal (the dynamic planner's),
 the lip minus the part's centre when the cup gripped it (the grip's offset) and the part minus its goal; then the
-success rate. A placing sub-goal is the lip's, so a right one is ~2.2 cm above the goal (the part's half height). Scenes: the run's seed + 1000, not its training scenes.
+success rate. A placing sub-goal is the lip's, so a right one is ~2.2 cm above the goal (the part's half height).
+Scenes: the run's seed + 1000, not its training scenes.
 
     .venv/bin/python scripts/ch3_guide_rollouts.py <MLflow run id> --subtask 1 [--episodes 12]
         [--stage-starts demonstrated,executed] [--steps 40] [--subgoal-steps 4] [--tracking-uri URI]
