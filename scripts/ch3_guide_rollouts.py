@@ -20,9 +20,7 @@ import numpy as np
 import torch
 from mlflow.tracking import MlflowClient
 
-from hrc_lab.env import ENVS
-from hrc_lab.motion.demonstrations import correction_demos
-from hrc_lab.motion.training import train_two_level
+from hrc_lab.experiments.ch3_rl import train_guide_models
 from hrc_lab.rl import RLS
 from hrc_lab.rl.goal_env import make_goal_env
 from hrc_lab.rl.guidance import CorrectionGuide, GuidedEnv
@@ -30,21 +28,14 @@ from hrc_lab.tracking import saved_run
 from hrc_lab.training import Trainer
 
 ROLLOUT_SCENES = 1000  # the rollouts' scene seed: the run's seed + this (not its training or evaluation scenes)
-DEMO_STREAM = 5  # the demonstrations' random stream, as hrc_lab.experiments.ch3_rl.train_guide draws them
 
 
-def train_guide(cfg, seed: int, stage_starts: tuple[str, ...]):
-    """Classifier, sub-goal planner and dynamic planner as the run trained them (without logging)."""
-    protocol = cfg.protocol
-    env = ENVS.build(cfg.env, seed=seed)
-    demos = correction_demos(env, protocol.demos, protocol.subgoals_per_stage, protocol.segmentation_penalty,
-                             "demos", protocol.placement_noise, np.random.default_rng([seed, DEMO_STREAM]),
-                             subgoal_path=protocol.subgoal_path)
+def unlogged_trainer(cfg):
+    """A Trainer factory from the run's ``trainer`` config that logs and checkpoints nothing."""
     settings = dataclasses.asdict(cfg.trainer)
     settings.pop("checkpoint_every_n_epochs")
     settings.update(enable_checkpointing=False, logger=False)
-    return train_two_level(cfg.motion, env, demos, stage_starts, protocol.subgoals_per_stage,
-                           lambda *_: Trainer(**settings), seed)
+    return lambda *_: Trainer(**settings)
 
 
 def main() -> None:
@@ -63,7 +54,7 @@ def main() -> None:
         saved = saved_run(MlflowClient(args.tracking_uri), args.run_id, tmp, artifacts="config")
     cfg = saved.cfg
     starts = tuple(args.stage_starts.split(",")) if args.stage_starts else tuple(cfg.protocol.stage_starts)
-    classifier, planner, ndp = train_guide(cfg, saved.seed, starts)
+    classifier, planner, ndp = train_guide_models(cfg, saved.seed, unlogged_trainer(cfg), starts)
     changes = {k: v for k, v in (("steps_per_subtask", args.steps), ("subgoal_steps", args.subgoal_steps)) if v}
     rl = RLS.derive(cfg.rl, lam=1.0, delta_g=1e-6, **changes)
     guide = CorrectionGuide.from_config(rl, classifier, planner, ndp, cfg.protocol.subgoals_per_stage)

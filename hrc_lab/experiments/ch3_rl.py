@@ -38,25 +38,37 @@ def guided(ctx: RunContext) -> bool:
     return ctx.cfg.rl.name == "ddpg_her_guided" and ctx.cfg.rl.lam > 0
 
 
-def train_guide(ctx: RunContext):
-    """The Ch.3 two-level planner from ``protocol.demos`` expert demonstrations (as Table 3.1), as Algorithm 1's
-    guide (:class:`~hrc_lab.rl.guidance.CorrectionGuide`)."""
+GUIDE_DEMO_STREAM = 5  # the guide's demonstrations draw from the run's random stream [seed, 5] (RunContext.rng)
+
+
+def train_guide_models(cfg, seed: int, trainer, stage_starts: tuple[str, ...] | None = None):
+    """Classifier c(x), sub-goal planner and neural dynamic planner of the Ch.3 two-level planner, trained as Table
+    3.1 trains them on ``protocol.demos`` expert demonstrations of ``cfg.env`` (``trainer(prefix)`` builds each
+    Lightning Trainer; ``stage_starts`` replaces ``protocol.stage_starts``). Also used by
+    ``scripts/ch3_guide_rollouts.py``."""
     from hrc_lab.motion.demonstrations import correction_demos
     from hrc_lab.motion.training import train_two_level
+
+    protocol = cfg.protocol
+    env = ENVS.build(cfg.env, seed=seed)
+    demos = correction_demos(env, protocol.demos, protocol.subgoals_per_stage, protocol.segmentation_penalty,
+                             f"demos {cfg.env.cell}", protocol.placement_noise,
+                             np.random.default_rng([seed, GUIDE_DEMO_STREAM]), subgoal_path=protocol.subgoal_path)
+    if not demos:
+        raise RuntimeError(f"no successful expert demonstration in {protocol.demos} for {cfg.env.cell}")
+    return train_two_level(cfg.motion, env, demos, tuple(stage_starts or protocol.stage_starts),
+                           protocol.subgoals_per_stage, trainer, seed)
+
+
+def train_guide(ctx: RunContext):
+    """The Ch.3 two-level planner (:func:`train_guide_models`) as Algorithm 1's guide
+    (:class:`~hrc_lab.rl.guidance.CorrectionGuide`), its networks logged into the run."""
     from hrc_lab.rl.guidance import CorrectionGuide
 
-    protocol = ctx.cfg.protocol
-    env = ENVS.build(ctx.cfg.env, seed=ctx.seed)
-    demos = correction_demos(env, protocol.demos, protocol.subgoals_per_stage, protocol.segmentation_penalty,
-                             f"demos {ctx.cfg.env.cell}", protocol.placement_noise, ctx.rng(5),
-                             subgoal_path=protocol.subgoal_path)
-    if not demos:
-        raise RuntimeError(f"no successful expert demonstration in {protocol.demos} for {ctx.cfg.env.cell}")
-    classifier, planner, ndp = train_two_level(ctx.cfg.motion, env, demos, protocol.stage_starts,
-                                               protocol.subgoals_per_stage, ctx.trainer, ctx.seed)
+    classifier, planner, ndp = train_guide_models(ctx.cfg, ctx.seed, ctx.trainer)
     ctx.tracker.log_torch_model(planner.network, "model/subgoal.pt")
     ctx.tracker.log_torch_model(ndp.network, "model/ndp.pt")
-    return CorrectionGuide.from_config(ctx.cfg.rl, classifier, planner, ndp, protocol.subgoals_per_stage)
+    return CorrectionGuide.from_config(ctx.cfg.rl, classifier, planner, ndp, ctx.cfg.protocol.subgoals_per_stage)
 
 
 def training_envs(ctx: RunContext, guide, subtask: int):
