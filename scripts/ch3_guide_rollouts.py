@@ -1,14 +1,16 @@
 """Where does Algorithm 1's guide leave the part, and why? Trains the two-level planner of a Fig. 3.13 run's config
 (the run's seed, its demonstrations; ``--stage-starts`` replaces ``protocol.stage_starts``) and rolls the guide
 alone (every step corrected: lambda 1, delta_g 1e-6) through ``--episodes`` episodes of ``--subtask``, with
-``--steps`` control steps per episode and ``--subgoal-steps`` (H_lo). Per episode it prints, in cm: the planner's
-last sub-goal minus the part's goal (the planner's error), the lip minus that sub-goal (the dynamic planner's),
-the lip minus the part's centre when the cup gripped it (the grip's offset) and the part minus its goal; then the
-success rate. A placing sub-goal is the lip's, so a right one is ~2.2 cm above the goal (the part's half height).
-Scenes: the run's seed + 1000, not its training scenes.
+``--steps`` control steps per episode, ``--subgoal-steps`` (H_lo) and ``--subgoal-tolerance`` (the distance at which
+a sub-goal counts as reached, in m). Per episode it prints the steps at which the cup gripped the part and the
+episode first succeeded, and, in cm: the planner's last sub-goal minus the part's goal (the planner's error), the
+lip minus that sub-goal (the dynamic planner's), the lip minus the part's centre when the cup gripped it (the
+grip's offset) and the part minus its goal; then the success rate. A placing sub-goal is the lip's, so a right
+one is ~2.2 cm above the goal (the part's half height). Scenes: the run's seed + 1000, not its training scenes.
 
     .venv/bin/python scripts/ch3_guide_rollouts.py <MLflow run id> --subtask 1 [--episodes 12]
-        [--stage-starts demonstrated,executed] [--steps 40] [--subgoal-steps 4] [--tracking-uri URI]
+        [--stage-starts demonstrated,executed] [--steps 40] [--subgoal-steps 4] [--subgoal-tolerance 0.008]
+        [--tracking-uri URI]
 """
 
 import argparse
@@ -46,6 +48,7 @@ def main() -> None:
     parser.add_argument("--stage-starts", help="comma-separated protocol.stage_starts (default: the run's)")
     parser.add_argument("--steps", type=int, help="control steps per episode (default: the run's)")
     parser.add_argument("--subgoal-steps", type=int, help="H_lo (default: the run's)")
+    parser.add_argument("--subgoal-tolerance", type=float, help="a sub-goal's reach distance, m (default: the run's)")
     parser.add_argument("--tracking-uri", default="sqlite:///runs/mlflow.db")
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -55,26 +58,31 @@ def main() -> None:
     cfg = saved.cfg
     starts = tuple(args.stage_starts.split(",")) if args.stage_starts else tuple(cfg.protocol.stage_starts)
     classifier, planner, ndp = train_guide_models(cfg, saved.seed, unlogged_trainer(cfg), starts)
-    changes = {k: v for k, v in (("steps_per_subtask", args.steps), ("subgoal_steps", args.subgoal_steps)) if v}
+    changes = {k: v for k, v in (("steps_per_subtask", args.steps), ("subgoal_steps", args.subgoal_steps),
+                                 ("subgoal_tolerance", args.subgoal_tolerance)) if v}
     rl = RLS.derive(cfg.rl, lam=1.0, delta_g=1e-6, **changes)
     guide = CorrectionGuide.from_config(rl, classifier, planner, ndp, cfg.protocol.subgoals_per_stage)
     env = GuidedEnv(make_goal_env(cfg.env, rl, seed=saved.seed + ROLLOUT_SCENES, subtask=args.subtask), guide,
                     1.0, rl.delta_g, seed=saved.seed)
     cell, successes = env.unwrapped.cell, []
-    print(f"stage starts {starts}, {rl.steps_per_subtask} steps, H_lo {rl.subgoal_steps}; offsets in cm", flush=True)
+    print(f"stage starts {starts}, {rl.steps_per_subtask} steps, H_lo {rl.subgoal_steps}, sub-goals reached within "
+          f"{rl.subgoal_tolerance} m; offsets in cm", flush=True)
     for episode in range(args.episodes):
         obs, _ = env.reset()
-        grip = None
-        for _ in range(env.unwrapped.horizon):
+        grip = grip_step = success_step = None
+        for step in range(1, env.unwrapped.horizon + 1):
             obs, _, terminated, truncated, info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
             if grip is None and cell.suction.held >= 0:
-                grip = (cell.eef_position() - cell.object_positions()[cell.suction.held]) * 100
+                grip, grip_step = (cell.eef_position() - cell.object_positions()[cell.suction.held]) * 100, step
+            if success_step is None and info["is_success"]:
+                success_step = step
             if terminated or truncated:
                 break
         goal = obs["desired_goal"][:3]
         successes.append(bool(info["is_success"]))
         grip_text = "none" if grip is None else np.round(grip, 1)
-        print(f"episode {episode}: success {successes[-1]}, steps {env.unwrapped.elapsed_steps}, "
+        print(f"episode {episode}: success {successes[-1]}, steps {env.unwrapped.elapsed_steps}, gripped at step "
+              f"{grip_step}, first success at step {success_step}, "
               f"sub-goal - goal {np.round((guide.current - goal) * 100, 1)}, "
               f"lip - sub-goal {np.round((env.unwrapped.lip() - guide.current) * 100, 1)}, grip {grip_text}, "
               f"part - goal {np.round((obs['achieved_goal'][:3] - goal) * 100, 1)}", flush=True)
