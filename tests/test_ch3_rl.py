@@ -227,6 +227,13 @@ def test_report_gives_a_plan_of_several_subtasks_its_sr_by_subtask(monkeypatch):
                          **{c: [0.5, 0.5] for c in ALL_FINAL}})
     text = curves_section(runs, "t", "intro", "thesis", "x.png").markdown
     assert "final policy SR by subtask" in text and "| 0.80 / 0.20 " in text and "| 0.90 / 0.20 " in text
-    one = runs.drop(columns=["final_policy_success_rate_subtask1"]).assign(scenario="one_object_case1")
+    # one-subtask runs read beside other runs' columns (all empty for them): no such columns
+    one = runs.assign(scenario="one_object_case1", final_policy_success_rate_subtask1=float("nan"))
     monkeypatch.setattr(ch3_rl, "histories", lambda runs, metric: train[train.step <= 2])
     assert "by subtask" not in curves_section(one, "t", "intro", "thesis", "x.png").markdown
+    # beside a two-object plan, a one-object row gives its one subtask only
+    monkeypatch.setattr(ch3_rl, "histories", lambda runs, metric: train)
+    mixed = pd.concat([runs, one.assign(run_id=["c", "d"], **{"param.protocol.epochs": ["4"] * 2})])
+    text = curves_section(mixed, "t", "intro", "thesis", "x.png").markdown
+    one_row = next(line for line in text.splitlines() if line.startswith("| one object"))
+    assert "| 0.80 " in one_row and "nan" not in one_row

@@ -64,10 +64,10 @@ def epochs_sr(runs: pd.DataFrame, history: pd.DataFrame, last: int | None = None
 
 
 def by_subtask(values: pd.DataFrame) -> str:
-    """One value per subtask (columns, in order), each the mean over the rows (seeds), as "0.85 / 0.13"; "–" when
-    no row has one."""
-    means = values.mean()
-    return " / ".join(f"{v:.2f}" for v in means) if len(means) and means.notna().any() else "–"
+    """One value per subtask (columns, in order) that the rows (seeds) have, each the mean over them, as
+    "0.85 / 0.13"; "–" when no row has one."""
+    means = values.mean().dropna()
+    return " / ".join(f"{v:.2f}" for v in means) if len(means) else "–"
 
 
 def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str, png: str) -> Section:
@@ -82,7 +82,8 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
     # per subtask, where a plan has several: the final policies' SR and the last epoch's training episodes' SR
     train_by_subtask = subtask_sr(runs, histories(runs, "train_success_rate"), last=1)
     train_by_subtask = train_by_subtask.unstack() if len(train_by_subtask) else pd.DataFrame()
-    final_by_subtask = sorted((c for c in runs if c.startswith("final_policy_success_rate_subtask")),
+    final_by_subtask = sorted((c for c in runs if c.startswith("final_policy_success_rate_subtask")  # these runs'
+                               and runs[c].notna().any()),
                               key=lambda c: int(c.removeprefix("final_policy_success_rate_subtask")))
     several_subtasks = train_by_subtask.shape[1] > 1 or len(final_by_subtask) > 1
     scenarios = sorted(runs.scenario.unique())
