@@ -3,10 +3,11 @@
 alone (every step corrected: lambda 1, delta_g 1e-6) through ``--episodes`` episodes of ``--subtask``, with
 ``--steps`` control steps per episode, ``--subgoal-steps`` (H_lo) and ``--subgoal-tolerance`` (the distance at which
 a sub-goal counts as reached, in m). Per episode it prints the steps at which the cup gripped the part and the
-episode first succeeded, and, in cm: the planner's last sub-goal minus the part's goal (the planner's error), the
-lip minus that sub-goal (the dynamic planner's), the lip minus the part's centre when the cup gripped it (the
-grip's offset) and the part minus its goal; then the success rate. A placing sub-goal is the lip's, so a right
-one is ~2.2 cm above the goal (the part's half height). Scenes: the run's seed + 1000, not its training scenes.
+episode first succeeded, the steps in which a joint moved at its limit, and, in cm: the planner's last sub-goal
+minus the part's goal (the planner's error), the lip minus that sub-goal (the dynamic planner's), the lip minus
+the part's centre when the cup gripped it (the grip's offset) and the part minus its goal; then the success rate.
+A placing sub-goal is the lip's, so a right one is ~2.2 cm above the goal (the part's half height).
+Scenes: the run's seed + 1000, not its training scenes.
 
     .venv/bin/python scripts/ch3_guide_rollouts.py <MLflow run id> --subtask 1 [--episodes 12]
         [--stage-starts demonstrated,executed] [--steps 40] [--subgoal-steps 4] [--subgoal-tolerance 0.008]
@@ -70,19 +71,22 @@ def main() -> None:
     for episode in range(args.episodes):
         obs, _ = env.reset()
         grip = grip_step = success_step = None
+        saturated = 0  # steps in which the guide drives a joint at >= 95 % of its per-step limit
         for step in range(1, env.unwrapped.horizon + 1):
             obs, _, terminated, truncated, info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
             if grip is None and cell.suction.held >= 0:
                 grip, grip_step = (cell.eef_position() - cell.object_positions()[cell.suction.held]) * 100, step
             if success_step is None and info["is_success"]:
                 success_step = step
+            executed = info["executed_action"]
+            saturated += executed is not None and np.abs(executed[:3]).max() >= 0.95
             if terminated or truncated:
                 break
         goal = obs["desired_goal"][:3]
         successes.append(bool(info["is_success"]))
         grip_text = "none" if grip is None else np.round(grip, 1)
         print(f"episode {episode}: success {successes[-1]}, steps {env.unwrapped.elapsed_steps}, gripped at step "
-              f"{grip_step}, first success at step {success_step}, "
+              f"{grip_step}, first success at step {success_step}, a joint at its limit in {saturated} steps, "
               f"sub-goal - goal {np.round((guide.current - goal) * 100, 1)}, "
               f"lip - sub-goal {np.round((env.unwrapped.lip() - guide.current) * 100, 1)}, grip {grip_text}, "
               f"part - goal {np.round((obs['achieved_goal'][:3] - goal) * 100, 1)}", flush=True)
