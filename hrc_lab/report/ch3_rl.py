@@ -82,7 +82,8 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
     # per subtask, where a plan has several: the final policies' SR and the last epoch's training episodes' SR
     train_by_subtask = subtask_sr(runs, histories(runs, "train_success_rate"), last=1)
     train_by_subtask = train_by_subtask.unstack() if len(train_by_subtask) else pd.DataFrame()
-    final_by_subtask = sorted((c for c in runs if c.startswith("final_policy_success_rate_subtask")  # these runs'
+    # the subtasks these runs logged (a column only other runs of the store logged is empty here)
+    final_by_subtask = sorted((c for c in runs if c.startswith("final_policy_success_rate_subtask")
                                and runs[c].notna().any()),
                               key=lambda c: int(c.removeprefix("final_policy_success_rate_subtask")))
     several_subtasks = train_by_subtask.shape[1] > 1 or len(final_by_subtask) > 1
