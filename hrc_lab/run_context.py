@@ -14,6 +14,21 @@ from hrc_lab.tracking import RunTracker
 from hrc_lab.training import RandomState, RunCheckpoint, Trainer
 
 
+def trainer_settings(trainer_cfg) -> tuple[dict, int]:
+    """``conf/trainer`` as Lightning Trainer keyword arguments, and its checkpoint interval in epochs (a key of ours,
+    not the Trainer's)."""
+    settings = dataclasses.asdict(trainer_cfg)
+    return settings, settings.pop("checkpoint_every_n_epochs")
+
+
+def unlogged_trainer(trainer_cfg):
+    """A Trainer factory with :meth:`RunContext.trainer`'s signature and ``conf/trainer`` settings that logs and
+    checkpoints nothing: for scripts that re-train a finished run's models outside any run."""
+    settings, _ = trainer_settings(trainer_cfg)
+    return lambda prefix="", **overrides: Trainer(**{**settings, **overrides, "enable_checkpointing": False,
+                                                     "logger": False})
+
+
 @dataclass
 class RunContext:
     """The validated config, the job's MLflow run, its seed and its output folder."""
@@ -38,8 +53,7 @@ class RunContext:
         if self._fits[name] > 1:
             name = f"{name}-{self._fits[name]}"
         folder = f"checkpoints/{name}"
-        settings = dataclasses.asdict(self.cfg.trainer)
-        every_n_epochs = settings.pop("checkpoint_every_n_epochs")
+        settings, every_n_epochs = trainer_settings(self.cfg.trainer)
         callbacks = [RandomState()]
         if settings["enable_checkpointing"]:
             upload = lambda path: self.tracker.log_artifact(path, folder)  # noqa: E731

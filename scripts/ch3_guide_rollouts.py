@@ -15,7 +15,6 @@ Scenes: the run's seed + 1000, not its training scenes.
 """
 
 import argparse
-import dataclasses
 import os
 import tempfile
 
@@ -27,18 +26,10 @@ from hrc_lab.experiments.ch3_rl import train_guide_models
 from hrc_lab.rl import RLS
 from hrc_lab.rl.goal_env import make_goal_env
 from hrc_lab.rl.guidance import CorrectionGuide, GuidedEnv
+from hrc_lab.run_context import unlogged_trainer
 from hrc_lab.tracking import saved_run
-from hrc_lab.training import Trainer
 
 ROLLOUT_SCENES = 1000  # the rollouts' scene seed: the run's seed + this (not its training or evaluation scenes)
-
-
-def unlogged_trainer(cfg):
-    """A Trainer factory from the run's ``trainer`` config that logs and checkpoints nothing."""
-    settings = dataclasses.asdict(cfg.trainer)
-    settings.pop("checkpoint_every_n_epochs")
-    settings.update(enable_checkpointing=False, logger=False)
-    return lambda *_: Trainer(**settings)
 
 
 def main() -> None:
@@ -58,9 +49,9 @@ def main() -> None:
         saved = saved_run(MlflowClient(args.tracking_uri), args.run_id, tmp, artifacts="config")
     cfg = saved.cfg
     starts = tuple(args.stage_starts.split(",")) if args.stage_starts else tuple(cfg.protocol.stage_starts)
-    classifier, planner, ndp = train_guide_models(cfg, saved.seed, unlogged_trainer(cfg), starts)
+    classifier, planner, ndp = train_guide_models(cfg, saved.seed, unlogged_trainer(cfg.trainer), starts)
     changes = {k: v for k, v in (("steps_per_subtask", args.steps), ("subgoal_steps", args.subgoal_steps),
-                                 ("subgoal_tolerance", args.subgoal_tolerance)) if v}
+                                 ("subgoal_tolerance", args.subgoal_tolerance)) if v is not None}
     rl = RLS.derive(cfg.rl, lam=1.0, delta_g=1e-6, **changes)
     guide = CorrectionGuide.from_config(rl, classifier, planner, ndp, cfg.protocol.subgoals_per_stage)
     env = GuidedEnv(make_goal_env(cfg.env, rl, seed=saved.seed + ROLLOUT_SCENES, subtask=args.subtask), guide,

@@ -184,3 +184,16 @@ def test_a_linear_classifier_learns_two_blobs():
     with torch.no_grad():
         after = accuracy(network(test_x), test_y).item()
     assert after > 0.95 and after > before
+
+
+def test_an_unlogged_trainer_has_the_configs_settings_and_neither_logger_nor_checkpoints():
+    """The factory scripts use to re-train a finished run's models: conf/trainer's settings and overrides, as
+    RunContext.trainer, without writing into any run."""
+    from hrc_lab.config import TrainerConfig
+    from hrc_lab.run_context import trainer_settings, unlogged_trainer
+
+    settings, every_n_epochs = trainer_settings(TrainerConfig(max_epochs=7))
+    assert settings["max_epochs"] == 7 and "checkpoint_every_n_epochs" not in settings
+    assert every_n_epochs == TrainerConfig().checkpoint_every_n_epochs
+    trainer = unlogged_trainer(TrainerConfig(max_epochs=7))("subgoal", max_epochs=3)
+    assert trainer.max_epochs == 3 and trainer.logger is None and trainer.checkpoint_callback is None
