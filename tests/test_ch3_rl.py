@@ -237,3 +237,16 @@ def test_report_gives_a_plan_of_several_subtasks_its_sr_by_subtask(monkeypatch):
     text = curves_section(mixed, "t", "intro", "thesis", "x.png").markdown
     one_row = next(line for line in text.splitlines() if line.startswith("| one object"))
     assert "| 0.80 " in one_row and "nan" not in one_row
+
+
+def test_sr_by_subtask_keeps_each_value_in_its_subtasks_place():
+    """A subtask no row logged reads "–" before a later subtask's value, and is left off after the last value."""
+    import pandas as pd
+
+    from hrc_lab.report.ch3_rl import by_subtask
+
+    columns = ["s0", "s1", "s2"]
+    assert by_subtask(pd.DataFrame({"s0": [float("nan")] * 2, "s1": [0.2, 0.4], "s2": [float("nan")] * 2},
+                                   columns=columns)) == "– / 0.30"
+    assert by_subtask(pd.DataFrame({"s0": [0.9, 0.7], "s1": [0.1, 0.3]}, columns=columns)) == "0.80 / 0.20"
+    assert by_subtask(pd.DataFrame({"s0": [float("nan")]}, columns=columns)) == "–"

@@ -64,10 +64,14 @@ def epochs_sr(runs: pd.DataFrame, history: pd.DataFrame, last: int | None = None
 
 
 def by_subtask(values: pd.DataFrame) -> str:
-    """One value per subtask (columns, in order) that the rows (seeds) have, each the mean over them, as
-    "0.85 / 0.13"; "–" when no row has one."""
-    means = values.mean().dropna()
-    return " / ".join(f"{v:.2f}" for v in means) if len(means) else "–"
+    """One value per subtask (columns, in order), each the mean over the rows (seeds), as "0.85 / 0.13"; a subtask
+    no row has is "–" where a later one has a value (each value stays in its subtask's place) and is left off after
+    the last value (a one-subtask row beside two-subtask rows reads "0.80"); "–" when no row has any."""
+    means = values.mean()
+    last = means.last_valid_index()
+    if last is None:
+        return "–"
+    return " / ".join("–" if pd.isna(v) else f"{v:.2f}" for v in means.loc[:last])
 
 
 def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str, png: str) -> Section:
