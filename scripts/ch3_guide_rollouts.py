@@ -11,7 +11,7 @@ Scenes: the run's seed + 1000, not its training scenes.
 
     .venv/bin/python scripts/ch3_guide_rollouts.py <MLflow run id> --subtask 1 [--episodes 12]
         [--stage-starts demonstrated,executed] [--steps 40] [--subgoal-steps 4] [--subgoal-tolerance 0.008]
-        [--tracking-uri URI]
+        [--set motion.place_through_grasp=true] [--tracking-uri URI]
 """
 
 import argparse
@@ -20,8 +20,11 @@ import tempfile
 
 import numpy as np
 import torch
+import yaml
 from mlflow.tracking import MlflowClient
+from omegaconf import OmegaConf
 
+from hrc_lab.config import ConfigError, validate_config
 from hrc_lab.experiments.ch3_rl import train_guide_models
 from hrc_lab.rl import RLS
 from hrc_lab.rl.goal_env import make_goal_env
@@ -41,6 +44,9 @@ def main() -> None:
     parser.add_argument("--steps", type=int, help="control steps per episode (default: the run's)")
     parser.add_argument("--subgoal-steps", type=int, help="H_lo (default: the run's)")
     parser.add_argument("--subgoal-tolerance", type=float, help="a sub-goal's reach distance, m (default: the run's)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="replace a key of the run's config before the guide is trained, e.g. "
+                             "motion.place_through_grasp=true (repeatable)")
     parser.add_argument("--tracking-uri", default="sqlite:///runs/mlflow.db")
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -48,6 +54,16 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         saved = saved_run(MlflowClient(args.tracking_uri), args.run_id, tmp, artifacts="config")
     cfg = saved.cfg
+    if args.set:  # the run's composed config with the changes, validated again (an unknown key fails, named)
+        for change in args.set:
+            key, sep, value = change.partition("=")
+            if not sep:
+                parser.error(f"--set {change}: expected KEY=VALUE")
+            OmegaConf.update(cfg.raw, key, yaml.safe_load(value), force_add=True)
+        try:
+            cfg = validate_config(cfg.raw)
+        except ConfigError as error:
+            parser.error(f"--set: {error}")
     starts = tuple(args.stage_starts.split(",")) if args.stage_starts else tuple(cfg.protocol.stage_starts)
     classifier, planner, ndp = train_guide_models(cfg, saved.seed, unlogged_trainer(cfg.trainer), starts)
     changes = {k: v for k, v in (("steps_per_subtask", args.steps), ("subgoal_steps", args.subgoal_steps),

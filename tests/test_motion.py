@@ -29,6 +29,7 @@ from hrc_lab.motion.two_level import (
     correction_pairs,
     correction_reference,
     dynamics_pairs,
+    grasp_shift,
     package_pairs,
     picking_label,
     reach,
@@ -151,10 +152,23 @@ def test_correction_rollout_of_a_few_steps():
     config = NDPConfig(steps=20, hidden=16)
     ndp = DynamicPlanner(config, env.max_joint_step, env.base_position())
     ndp.fit(*dynamics_pairs(demos, config), tiny_trainer)
-    out, final = run_correction(env, planner, ndp, classifier, n_subgoals=2, max_steps=2)
-    assert out.steps > 0 and final.shape == (3, 3)
-    assert out.failure in ("", "pick", "collision", "horizon")
-    assert out.picks and set(out.picks) <= {1, 2}  # the object c(x) sent each picking stage to
+    for place_through_grasp in (False, True):
+        out, final = run_correction(env, planner, ndp, classifier, n_subgoals=2, max_steps=2,
+                                    place_through_grasp=place_through_grasp)
+        assert out.steps > 0 and final.shape == (3, 3)
+        assert out.failure in ("", "pick", "collision", "horizon")
+        assert out.picks and set(out.picks) <= {1, 2}  # the object c(x) sent each picking stage to
+
+
+def test_grasp_shift_moves_placing_subgoals_by_the_lips_horizontal_offset_from_the_held_part():
+    """Placing red (label 3) with the lip 1 cm beside and 2 cm behind red's centre (and 2.5 cm above it): its
+    sub-goals move by (1, -2, 0) cm, so the part lands where the planner put a centred grip's lip; picking (label
+    2) moves nothing."""
+    objects = np.array([[0.0, 0.0, 0.8], [0.1, 0.1, 0.8], [0.2, -0.2, 0.8]])
+    lip = objects[2] + [0.01, -0.02, 0.025]
+    assert np.allclose(grasp_shift(objects.ravel(), lip, 3), [0.01, -0.02, 0.0])
+    assert np.allclose(grasp_shift(objects.ravel(), lip, 1), lip - objects[1] - [0, 0, lip[2] - objects[1][2]])
+    assert np.allclose(grasp_shift(objects.ravel(), lip, 2), 0.0)
 
 
 def test_path_targets_are_the_end_effector_later_in_the_same_stage():

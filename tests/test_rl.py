@@ -520,6 +520,32 @@ def test_the_guides_picking_rule_names_its_object(env, two_level_guide):
     assert rules == {"classifier": (2, 2), "ground_truth": (0, 1)}
 
 
+def test_the_guides_placing_subgoal_moves_by_the_grips_offset_with_place_through_grasp(env, two_level_guide):
+    """``motion.place_through_grasp``: a placing sub-goal is the planner's plus the lip's horizontal offset from
+    the held part (here blue, its placing stage forced); picking sub-goals and the flag's default are unchanged."""
+    import copy
+    import dataclasses
+
+    from hrc_lab.env.robot.cell import PICK, PLACE
+    from hrc_lab.motion.two_level import grasp_shift
+
+    env.reset(seed=0)
+    planner = copy.copy(two_level_guide.planner)
+    planner.config = dataclasses.replace(planner.config, place_through_grasp=True)
+    subgoals = {}
+    for name, p in (("plain", two_level_guide.planner), ("shifted", planner)):
+        guide = CorrectionGuide(two_level_guide.classifier, p, two_level_guide.ndp, 2, 3, stage_labels="ground_truth")
+        guide.reset(env)
+        subgoals[name, PICK] = guide.subgoal(env).copy()
+        guide.stage, guide.label, guide.current = PLACE, guide.label + 1, None  # as once the cup holds blue
+        subgoals[name, PLACE] = guide.subgoal(env).copy()
+    cell = env.cell
+    shift = grasp_shift(cell.object_positions(), cell.eef_position(), 1)
+    assert np.linalg.norm(shift[:2]) > 0.01 and shift[2] == 0.0  # the arm at home, far from blue
+    assert np.allclose(subgoals["shifted", PICK], subgoals["plain", PICK])
+    assert np.allclose(subgoals["shifted", PLACE] - subgoals["plain", PLACE], shift)
+
+
 def test_checkpoint_round_trip_resumes_training(env, tmp_path, monkeypatch):
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))  # SB3's default logger would write here
     (tmp_path / "tmp").mkdir()

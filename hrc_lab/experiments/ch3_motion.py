@@ -83,7 +83,8 @@ def correction_loop(protocol, models, **overrides):
     classifier, planner, ndp = models
     settings = dict(n_subgoals=protocol.subgoals_per_stage, max_steps=protocol.max_steps_per_subgoal,
                     tolerance=protocol.tolerance, stage_labels=protocol.stage_labels,
-                    planner_input=planner.config.planner_input, placement_oracle=protocol.placement_oracle)
+                    planner_input=planner.config.planner_input,
+                    place_through_grasp=planner.config.place_through_grasp, placement_oracle=protocol.placement_oracle)
     return partial(run_correction, planner=planner, ndp=ndp, classifier=classifier, **settings | overrides)
 
 

@@ -126,6 +126,12 @@ class SubgoalConfig:
     # thesis' three object positions (3.3); "selected", the labelled object's and green's. Ch.4's input is its own
     # (o_selected or p, Fig. 4.4).
     planner_input: str = "full"
+    # Ch.3 placing sub-goals are moved by the lip's horizontal offset from the held part's centre (measured when each
+    # sub-goal is planned), so that the part, not the lip, reaches the planned place
+    # (hrc_lab.motion.two_level.grasp_shift). The demonstrations grip parts at their centre, so the planner learned
+    # lip sub-goals for a centred grip; not in the thesis. Without it, Fig. 3.13's second object (red) landed 1-2.5
+    # cm short of its goal in 11 of 20 episodes of a final policy, by the grip's offset (docs/chapters/ch3_rl.md)
+    place_through_grasp: bool = False
     ndp: NDPConfig = field(default_factory=NDPConfig)
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)  # Ch.3's c(x); Ch.4 labels its stages
 

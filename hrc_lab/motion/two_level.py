@@ -81,6 +81,18 @@ def correction_reference(objects: np.ndarray, label: int) -> np.ndarray:
     return objects[correction_object(label)] if label % 2 == PICK else objects[0]
 
 
+def grasp_shift(objects: np.ndarray, lip: np.ndarray, label: int) -> np.ndarray:
+    """What a Ch.3 stage ``label``'s sub-goals are moved by so that the held part, not the lip, reaches them
+    (``motion.place_through_grasp``): when placing, the lip's horizontal offset from the held part's centre
+    (``objects``: the object positions now, ``lip``: the measured lip); zero when picking. The demonstrations grip
+    each part at its centre, so a planned placing sub-goal is the lip's for a centred grip; a grip off the centre
+    would put the part off the planned place by that offset. Not in the thesis."""
+    if label % 2 == PICK:
+        return np.zeros(3)
+    offset = np.asarray(lip, dtype=float) - np.asarray(objects).reshape(-1, 3)[correction_object(label)]
+    return np.array([offset[0], offset[1], 0.0])
+
+
 def correction_input(objects: np.ndarray, r: np.ndarray, label: int, kind: str = "full") -> np.ndarray:
     """x of the Ch.3 sub-goal planner for stage ``label``: ``full`` (3.3) the three object positions and r;
     ``selected`` the position of the object the label names, green's (the goals' reference) and r, like Ch.4's
@@ -294,14 +306,15 @@ def run_package(env, motion: TwoLevelMotion) -> Rollout:
 
 def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps: int = 30,
                    tolerance: float = 0.008, stage_labels: str = "classifier",
-                   planner_input: str = "full", placement_oracle: bool = False,
+                   planner_input: str = "full", place_through_grasp: bool = False, placement_oracle: bool = False,
                    manipulations: int | None = None) -> tuple[Rollout, np.ndarray]:
     """One error-correction trial: for each manipulation the case needs, the classifier c(x) labels the stage
     from the raw observation at its start (which object to pick), the placing stage of that object follows, and
     the planner proposes the sub-goals of each stage. ``stage_labels``: a rule of :func:`picking_label`, or
     ``ground_truth``: the expert's plan names the object to pick instead of c(x) (a diagnosis of the classifier,
     not the thesis' system); ``planner_input`` as the
-    planner was trained (:func:`correction_input`); ``placement_oracle``: each released object is set exactly onto
+    planner was trained (:func:`correction_input`); ``place_through_grasp``: placing sub-goals moved by the grip's
+    offset (:func:`grasp_shift`); ``placement_oracle``: each released object is set exactly onto
     its goal before the next stage (a diagnosis of how a placement error propagates); ``manipulations``: stop after
     that many pick-and-place manipulations, the released part settled (DAgger's roll-in,
     :mod:`hrc_lab.motion.dagger`; default all the case needs). Returns the rollout (with the object each picking
@@ -328,6 +341,8 @@ def run_correction(env, planner, ndp, classifier, n_subgoals: int = 5, max_steps
         for i in range(n_subgoals):
             subgoal = plan(planner, correction_input(objects, env.lip_target_position(), label, planner_input), label,
                            i, correction_reference(objects, label), out.planning_ms)
+            if place_through_grasp:
+                subgoal = subgoal + grasp_shift(env.object_positions(), env.eef_position(), label)
             steps, status = reach(env, ndp, subgoal, stage == PLACE or i > 0, max_steps, tolerance)
             out.count(steps, status)
             if status in (COLLISION, HORIZON):

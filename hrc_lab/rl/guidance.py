@@ -32,7 +32,13 @@ import gymnasium as gym
 import numpy as np
 
 from hrc_lab.env.robot.cell import PICK, PLACE
-from hrc_lab.motion.two_level import correction_input, correction_object, correction_reference, picking_label
+from hrc_lab.motion.two_level import (
+    correction_input,
+    correction_object,
+    correction_reference,
+    grasp_shift,
+    picking_label,
+)
 
 
 def needs_correction(predicted: np.ndarray, subgoal: np.ndarray, delta_g: float) -> bool:
@@ -83,6 +89,8 @@ class CorrectionGuide:
     is picking until the cup holds the object, then placing (the object is named once per episode, as per
     manipulation in the closed loop of :func:`~hrc_lab.motion.two_level.run_correction`). Suction as there: on
     from a picking stage's second sub-goal and through placing, off once the last placing sub-goal is reached.
+    With the planner's ``place_through_grasp``, placing sub-goals move by the grip's offset from the part's centre
+    (:func:`~hrc_lab.motion.two_level.grasp_shift`), as in the closed loop.
     """
 
     def __init__(self, classifier: Any, planner: Any, ndp: Any, n_subgoals: int = 5, subgoal_steps: int = 30,
@@ -126,6 +134,8 @@ class CorrectionGuide:
             reference = correction_reference(self.objects, self.label)
             mean, _ = self.planner.predict(x[None], np.array([self.label]), np.array([self.index]), reference[None])
             self.current, self.steps = mean[0], 0
+            if self.planner.config.place_through_grasp:
+                self.current = self.current + grasp_shift(cell.object_positions(), cell.eef_position(), self.label)
         self.steps += 1
         return self.current
 
