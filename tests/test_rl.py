@@ -522,7 +522,8 @@ def test_the_guides_picking_rule_names_its_object(env, two_level_guide):
 
 def test_the_guides_placing_subgoal_moves_by_the_grips_offset_with_place_through_grasp(env, two_level_guide):
     """``motion.place_through_grasp``: a placing sub-goal is the planner's plus the lip's horizontal offset from
-    the held part (here blue, its placing stage forced); picking sub-goals and the flag's default are unchanged."""
+    the part as the cup took it (here blue, marked held with the arm at home); picking sub-goals and the flag's
+    default are unchanged."""
     import copy
     import dataclasses
 
@@ -537,8 +538,10 @@ def test_the_guides_placing_subgoal_moves_by_the_grips_offset_with_place_through
         guide = CorrectionGuide(two_level_guide.classifier, p, two_level_guide.ndp, 2, 3, stage_labels="ground_truth")
         guide.reset(env)
         subgoals[name, PICK] = guide.subgoal(env).copy()
-        guide.stage, guide.label, guide.current = PLACE, guide.label + 1, None  # as once the cup holds blue
+        env.cell.suction.held = 1  # the cup holds blue: the placing stage starts
         subgoals[name, PLACE] = guide.subgoal(env).copy()
+        env.cell.suction.held = -1
+        assert guide.stage == PLACE
     cell = env.cell
     shift = grasp_shift(cell.object_positions(), cell.eef_position(), 1)
     assert np.linalg.norm(shift[:2]) > 0.01 and shift[2] == 0.0  # the arm at home, far from blue
