@@ -2,8 +2,9 @@
 every finished run's last agent per subtask (``agents/subtask<k>/``), replays the run's last evaluation (its
 held-out scenes, the deterministic policy; with ``--final`` the scenes of ``protocol.final_eval_episodes``, which
 no epoch saw, so runs from before that key get the same measurement) and splits |P_obj - P_goal| into the
-position error and the yaw error; also Eq. 3.6's success (mean and std over the seeds' rates) and how many
-episodes held the part, moved it more than 2 cm, or collided. Prints one row per (scenario, lambda).
+position error and the yaw error (``--per-episode``: every episode's error along x and y beside the lip's offset
+from the part's centre when the cup first held it); also Eq. 3.6's success (mean and std over the seeds' rates)
+and how many episodes held the part, moved it more than 2 cm, or collided. Prints one row per (scenario, lambda).
 
     .venv/bin/python scripts/rl_final_policies.py 2026-12-02_06-55-00 [--tracking-uri URI] [--episodes 10]
         [--final] [--per-episode]
@@ -27,10 +28,22 @@ from hrc_lab.tracking import saved_run
 
 
 def replay(agent: HerDDPG, env, seed: int) -> dict[str, float]:
-    """One evaluation episode; the last step's position and yaw errors (the farthest goal object)."""
-    info, _ = run_episode(agent, env, seed=seed)
+    """One evaluation episode; the last step's position and yaw errors (the farthest goal object), the part's
+    error along x and y and the lip's horizontal offset from the part's centre when the cup first held it."""
+    grip = []
+
+    def first_hold(env, info) -> None:
+        if info["held"] and not grip:
+            cell = env.cell
+            grip.append(cell.eef_position() - cell.object_positions()[cell.suction.held])
+
+    info, _ = run_episode(agent, env, seed=seed, on_step=first_hold)
     error = (info["achieved_goal"] - info["desired_goal"]).reshape(-1, env.dims_per_object)
+    farthest = int(np.argmax(np.linalg.norm(error[:, :3], axis=1)))
+    offset = grip[0] if grip else np.full(3, np.nan)
     return {"position_m": float(np.linalg.norm(error[:, :3], axis=1).max()),
+            "dx_m": float(error[farthest, 0]), "dy_m": float(error[farthest, 1]),
+            "grip_dx_m": float(offset[0]), "grip_dy_m": float(offset[1]),
             "yaw_rad": float(np.abs(error[:, 3]).max()) if env.dims_per_object == 4 else float("nan"),
             "success": bool(info["is_success"]), "held": info["ever_held"], "moved": info["ever_moved"],
             "collided": bool(info["collided"]),
@@ -96,6 +109,12 @@ def main() -> None:
         for (scenario, lam), group in groups:
             errors = " ".join(f"{100 * e:.2f}" for e in sorted(group.position_m))
             print(f"{scenario}, lambda {lam:g}: position error per episode (cm, sorted): {errors}")
+        print("per episode, cm: the part minus its goal (x, y) and the lip minus the part's centre when the cup "
+              "first held it (x, y)")
+        for row in frame.itertuples():
+            print(f"{row.scenario}, lambda {row.lam:g}, seed {row.seed}, subtask {row.subtask}: success "
+                  f"{row.success}, part - goal ({100 * row.dx_m:+.1f}, {100 * row.dy_m:+.1f}), grip "
+                  f"({100 * row.grip_dx_m:+.1f}, {100 * row.grip_dy_m:+.1f})")
 
 
 if __name__ == "__main__":

@@ -797,6 +797,18 @@ def test_evaluation_says_whether_the_policy_held_and_moved_the_part():
     assert (from_table["grip_rate"], from_table["moved_rate"]) == (0.0, 0.0)
 
 
+def test_run_episode_shows_every_step_to_on_step():
+    """``run_episode(on_step=...)`` sees the env and the info of each of the episode's steps, in order."""
+    from hrc_lab.rl.agent import run_episode
+
+    held = make_goal_env(correction_cell(), RLConfig(**TINY, start="held"), seed=0, subtask=0)
+    seen = []
+    info, _ = run_episode(_StillAgent(held), held, seed=0,
+                          on_step=lambda env, info: seen.append((env.elapsed_steps, info["held"])))
+    assert [step for step, _ in seen] == list(range(1, held.horizon + 1))
+    assert all(h for _, h in seen) and info["ever_held"]
+
+
 # --- the task as 3.3 states it: yaw under the part's symmetry, wrist 3 relative to the base, release on a support ----
 
 

@@ -278,11 +278,13 @@ def add_demonstrations(agent: HerDDPG, env: HRCGoalEnv, episodes: int, seed: int
     return float(np.mean(successes)) if successes else float("nan")
 
 
-def run_episode(agent: HerDDPG, env: HRCGoalEnv, seed: int | None = None) -> tuple[dict, int | None]:
+def run_episode(agent: HerDDPG, env: HRCGoalEnv, seed: int | None = None,
+                on_step: Callable[[HRCGoalEnv, dict], None] | None = None) -> tuple[dict, int | None]:
     """One episode of the deterministic policy from the env's next scene (reseeded with ``seed`` when given):
     the last step's info, with ``ever_held`` (a part was held at some step), ``ever_moved`` (a goal object was
     more than :data:`MOVED_M` from its start at some step) and the last observation's ``achieved_goal`` and
-    ``desired_goal`` added, and the step at which the goal was first reached (None if never)."""
+    ``desired_goal`` added, and the step at which the goal was first reached (None if never). ``on_step(env,
+    info)`` sees every step (e.g. a diagnosis of where the cup holds the part)."""
     obs, _ = env.reset(seed=seed)
     first = None
     truncated = terminated = False
@@ -290,6 +292,8 @@ def run_episode(agent: HerDDPG, env: HRCGoalEnv, seed: int | None = None) -> tup
     while not (truncated or terminated):
         action, _ = agent.predict(obs, deterministic=True)
         obs, _, terminated, truncated, info = env.step(action)
+        if on_step is not None:
+            on_step(env, info)
         held |= bool(info["held"])
         moved |= info["moved_m"] > MOVED_M
         if info["is_success"] and first is None:
