@@ -130,9 +130,11 @@ class SubgoalConfig:
     # sub-goal is planned), so that the part, not the lip, reaches the planned place
     # (hrc_lab.motion.two_level.grasp_shift). The demonstrations grip parts at their centre, so the planner learned
     # lip sub-goals for a centred grip; not in the thesis. Without it, Fig. 3.13's second object (red) landed 1-2.5
-    # cm short of its goal in 11 of 20 episodes of a final policy, by the grip's offset. The guide alone placed red
-    # in 0.85 of 20 episodes at 60 steps with it (0.70 without; 0.75 with the offset measured once, as the cup took
-    # the part) and the one-object part in 0.80 at 40 steps (0.85 without; docs/chapters/ch3_rl.md)
+    # cm short of its goal in 11 of 20 episodes of a final policy, by the grip's offset. The guide alone, 20
+    # episodes: red at 60 steps 0.85 with it, 0.70 without (0.75 with the offset measured once, as the cup took the
+    # part); but blue, the two-object case's first part, 0.85 with it, 1.00 without, and the one-object part 0.80,
+    # 0.85 without. Blue's planner already moves its sub-goals with the grip (learned from the demonstrations'
+    # grips), so the shift doubles the correction; red's does not. Off (docs/chapters/ch3_rl.md)
     place_through_grasp: bool = False
     ndp: NDPConfig = field(default_factory=NDPConfig)
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)  # Ch.3's c(x); Ch.4 labels its stages
