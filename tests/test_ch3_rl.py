@@ -206,6 +206,9 @@ def test_report_names_the_guide_and_the_guide_alone_runs():
     executed = alone.assign(**{f"{P}protocol.stage_starts.0": ["demonstrated"],
                                f"{P}protocol.stage_starts.1": ["executed"]})
     assert "closed loop starts it (`protocol.stage_starts`" in guide_text(executed)
+    assert "place_through_grasp" not in guide_text(executed)
+    through = executed.assign(**{f"{P}motion.place_through_grasp": ["True"]})
+    assert "the part, not the lip, reaches them (`motion.place_through_grasp`" in guide_text(through)
 
 
 def test_report_gives_a_plan_of_several_subtasks_its_sr_by_subtask(monkeypatch):

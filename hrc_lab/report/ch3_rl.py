@@ -195,8 +195,9 @@ GUIDE_ALONE_M = 1e-3  # a delta_g below this with lambda 1 corrects every step: 
 def guide_text(runs: pd.DataFrame) -> str:
     """The guide of the runs: its sub-goal planner (``motion.name``), what named the object a guided episode goes
     for (``rl.stage_labels``; runs from before the key: c(x_1)'s label), whether its training pairs also start
-    where the closed loop starts a stage (``protocol.stage_starts``), and, with ``rl.delta_g`` below 1 mm and
-    λ = 1, that every step was the guide's."""
+    where the closed loop starts a stage (``protocol.stage_starts``), whether it places through the cup's grip
+    (``motion.place_through_grasp``), and, with ``rl.delta_g`` below 1 mm and λ = 1, that every step was the
+    guide's."""
     planners = setting_values(runs, "motion.name")
     rules = setting_values(runs, "rl.stage_labels") or ["classifier"]
     text = ("Guide: " + " or ".join(GUIDE_PLANNERS.get(p, f"`{p}`") for p in planners or ["?"])
@@ -205,6 +206,9 @@ def guide_text(runs: pd.DataFrame) -> str:
     if "executed" in starts:
         text += (" Its training pairs start each stage both where the demonstrator's lip was at the change point and "
                  "where the closed loop starts it (`protocol.stage_starts`, docs/chapters/ch3_motion.md).")
+    if "True" in setting_values(runs, "motion.place_through_grasp"):
+        text += (" Its placing sub-goals move by the lip's offset from the held part's centre, so that the part, "
+                 "not the lip, reaches them (`motion.place_through_grasp`, docs/chapters/ch3_motion.md).")
     delta_g = setting_number(runs, "rl.delta_g")
     if delta_g is not None and delta_g < GUIDE_ALONE_M and set(lam_of(runs)) == {"1"}:
         text += (f" δg = {delta_g:g} m and λ = 1: the guide corrects every step, so these runs measure the guide "
