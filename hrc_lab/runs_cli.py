@@ -108,31 +108,48 @@ def why_not_resumable(overrides: list[str]) -> str | None:
 
 
 def job_of(run) -> dict[str, str]:
-    """What makes two runs the same job: their resolved config (params), ``resume_from`` aside. A run did an older
-    run's job when no setting the older one logged changed (:func:`hrc_lab.tracking.changed_settings`)."""
+    """What makes two runs the same job: their resolved config (params), ``resume_from`` aside."""
     return {key: value for key, value in run.data.params.items() if key != "resume_from"}
+
+
+def same_job(ended, others: list, overrides: list[str]) -> list:
+    """The runs of ``others`` that do ``ended``'s job: no setting either logged differs, a key only one of them
+    logged (added since the older one ran) aside, and each key ``ended`` did not log holds the value its job
+    (``overrides``, its task overrides) composes to today: the default that keeps what ``ended`` ran. So a run that
+    sets a key added since ``ended`` ran away from its default does another job. Where the runs log and write (the
+    neutral groups) is not the job."""
+    from hrc_lab.report.defaults import composed_today
+
+    alike = [other for other in others if not changed_settings(job_of(ended), job_of(other))]
+    today = composed_today(tuple(overrides)) if alike else None
+    if today is None:  # none alike, or a job that no longer composes (which cannot resume either)
+        return alike
+    added = {key: value for key, value in today.items() if key not in job_of(ended)}
+    return [other for other in alike if not changed_settings({k: v for k, v in job_of(other).items() if k in added},
+                                                             added)]
 
 
 def resumable(tracking_uri: str) -> list[tuple[str, str]]:
     """(run id, command) of every KILLED or FAILED job run that no run resumed, of a job (config) no FINISHED or
-    RUNNING run did or does, not tagged ``invalidated`` and that today's config can resume, oldest first. Each is
-    printed with its command; a run today's config cannot resume, an invalidated one, or one whose job a RUNNING
-    run does now, is printed with the reason."""
+    RUNNING run did or does (:func:`same_job`), not tagged ``invalidated`` and that today's config can resume,
+    oldest first. Each is printed with its command; a run today's config cannot resume, an invalidated one, or one
+    whose job a RUNNING run does now, is printed with the reason."""
     os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
     client = MlflowClient(resolve_tracking_uri(tracking_uri))
     ended = [run for status in ("KILLED", "FAILED") for run in runs_where(client, f"attributes.status = '{status}'")]
     finished = runs_where(client, "attributes.status = 'FINISHED'")
     running = running_runs(client)
     resumed = {run.data.tags.get("resumed_from") for run in [*ended, *finished, *running]}
-    done = [job_of(run) for run in finished]
-    doing = [(job_of(run), run) for run in running]
     found = []
     for run in sorted(ended, key=lambda run: run.info.start_time):
         if "experiment" not in run.data.tags or run.data.tags.get("kind") == "summary":
             continue  # not a job's run
-        if run.info.run_id in resumed or any(not changed_settings(job_of(run), job) for job in done):
+        if run.info.run_id in resumed:
             continue
-        twin = next((other for job, other in doing if not changed_settings(job_of(run), job)), None)
+        task = job_overrides(client, run)
+        if same_job(run, finished, task):
+            continue
+        twin = next(iter(same_job(run, running, task)), None)
         if twin is not None:  # started afresh, not resumed: nothing to do unless that run ends unfinished too
             print(f"{run.info.status.lower():7}  {run.info.run_name}: its job is running now (run "
                   f"{twin.info.run_id}; if its process is gone, `hrc-lab-runs stale` first)")
@@ -140,7 +157,7 @@ def resumable(tracking_uri: str) -> list[tuple[str, str]]:
         if "invalidated" in run.data.tags:
             print(f"{run.info.status.lower():7}  {run.info.run_name}: invalidated ({run.data.tags['invalidated']})")
             continue
-        overrides = [*job_overrides(client, run), f"resume_from={run.info.run_id}"]
+        overrides = [*task, f"resume_from={run.info.run_id}"]
         reason = why_not_resumable(overrides)
         if reason is not None:
             print(f"{run.info.status.lower():7}  {run.info.run_name}: cannot resume today ({reason})")

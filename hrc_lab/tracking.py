@@ -130,6 +130,18 @@ def flatten(node, prefix: str = "") -> dict[str, str]:
     return out
 
 
+def job_settings(cfg: DictConfig) -> dict[str, str]:
+    """The flattened, resolved settings of ``cfg`` that make its job: all but the neutral groups' (where a run logs
+    and writes, :data:`hrc_lab.run_naming.NEUTRAL_KEYS`) and those interpolated from them."""
+    from hrc_lab.run_naming import NEUTRAL_KEYS
+
+    neutral_reference = re.compile(r"\$\{(" + "|".join(NEUTRAL_KEYS) + r")\.")
+    resolved = flatten(OmegaConf.to_container(cfg, resolve=True))
+    raw = flatten(OmegaConf.to_container(cfg, resolve=False))
+    return {key: value for key, value in resolved.items()
+            if key.split(".")[0] not in NEUTRAL_KEYS and not neutral_reference.search(raw.get(key, ""))}
+
+
 def process_identity(pid: int | None = None) -> dict[str, str]:
     """Tags that identify the process running a job: host, PID and the process' start (boot id and start time in
     clock ticks), so a later look can tell a live job from a dead one whose PID was reused."""

@@ -255,6 +255,10 @@ def test_resume_from_is_checked_before_work(compose_config, tmp_path):
     same = compose_config(*overrides, f"resume_from={parent.run_id}")
     check_resumable(validate_config(same), same)  # a KILLED run of the same config: fine
 
+    elsewhere = [f"logger.tracking_uri={uri}", f"logger.artifact_root={tmp_path}/moved", f"paths.runs_dir={tmp_path}"]
+    moved = compose_config("experiment=ch4/table_4_1", *elsewhere, f"resume_from={parent.run_id}")
+    check_resumable(validate_config(moved), moved)  # where runs log and write is not the job
+
     other = compose_config(*overrides, f"resume_from={parent.run_id}", "trainer.max_epochs=3")
     with pytest.raises(ConfigError, match=r"resume_from: .*trainer\.max_epochs"):
         check_resumable(validate_config(other), other)
@@ -278,8 +282,9 @@ def test_resume_from_is_checked_before_work(compose_config, tmp_path):
 
 
 def test_resumable_lists_the_killed_jobs_left_with_their_commands(compose_config, tmp_path, capsys):
-    """Listed: a KILLED run nothing resumed or replaced, with the command that resumes it. Not listed: a killed run
-    a later run resumed, one whose config a FINISHED run did (keys added since aside), one today's config cannot
+    """Listed: a KILLED run nothing resumed or replaced, with the command that resumes it, also when a FINISHED run
+    sets a key added since it ran away from that key's default. Not listed: a killed run a later run resumed, one
+    whose config a FINISHED run did (keys added since, at their defaults, aside), one today's config cannot
     resume (its logged config is not what its overrides compose to now: the reason is printed), an invalidated
     one and one whose job a RUNNING run does now."""
     uri = f"sqlite:///{tmp_path}/mlflow.db"
@@ -309,6 +314,9 @@ def test_resumable_lists_the_killed_jobs_left_with_their_commands(compose_config
     invalid = job([*base, "seed=5"], "KILLED")
     job([*base, "seed=6"], "KILLED", added_since="max_epochs")  # done since by a run that logs one key more
     job([*base, "seed=6"], "FINISHED")
+    # not done by a run that sets that key away from the default the killed run ran with
+    other_job = job([*base, "seed=8"], "KILLED", added_since="max_epochs")
+    job([*base, "seed=8", "trainer.max_epochs=3"], "FINISHED")
     MlflowClient(uri).set_tag(invalid, "invalidated", "a bug, fixed since")
     restarted = job([*base, "seed=7"], "KILLED")  # its job started afresh, running now
     client = MlflowClient(uri)
@@ -316,7 +324,7 @@ def test_resumable_lists_the_killed_jobs_left_with_their_commands(compose_config
     client.log_batch(twin.info.run_id, params=[Param(k, v) for k, v in client.get_run(restarted).data.params.items()])
 
     found = dict(resumable(uri))
-    assert set(found) == {left, killed_again}
+    assert set(found) == {left, killed_again, other_job}
     assert found[left] == " ".join(["hrc-lab", "hydra.mode=RUN", *base, "seed=1", f"resume_from={left}"])
     assert found[killed_again].endswith(f"seed=2 resume_from={killed_again}")
     printed = capsys.readouterr().out

@@ -21,11 +21,10 @@ import re
 import pandas as pd
 from omegaconf import OmegaConf, open_dict
 
-from hrc_lab.run_naming import CONF_DIR, NEUTRAL_KEYS, variant_of
-from hrc_lab.tracking import changed_settings, flatten
+from hrc_lab.run_naming import CONF_DIR, variant_of
+from hrc_lab.tracking import changed_settings, job_settings
 
 PARAM_PREFIX = "param."  # params (the resolved config, dotted keys) are columns "param.<key>"
-_NEUTRAL_REFERENCE = re.compile(r"\$\{(" + "|".join(NEUTRAL_KEYS) + r")\.")
 
 
 @functools.cache
@@ -70,12 +69,9 @@ def composed_today(overrides: tuple[str, ...]) -> dict[str, str] | None:
     try:
         for override in OverridesParser.create().parse_overrides([o for o in overrides if not _chooses_a_config(o)]):
             OmegaConf.update(cfg, override.key_or_group, override.value(), merge=True)
-        resolved = flatten(OmegaConf.to_container(cfg, resolve=True))
+        return job_settings(cfg)
     except Exception:  # a key that no longer exists, a value its schema no longer accepts, an interpolation
         return None
-    raw = flatten(OmegaConf.to_container(cfg, resolve=False))
-    return {key: value for key, value in resolved.items()
-            if key.split(".")[0] not in NEUTRAL_KEYS and not _NEUTRAL_REFERENCE.search(raw.get(key, ""))}
 
 
 def read_by_run(key: str, protocol: str | None, method: str | None) -> bool:
