@@ -82,7 +82,7 @@ def main() -> None:
         for step in range(1, env.unwrapped.horizon + 1):
             obs, _, terminated, truncated, info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
             if grip is None and cell.suction.held >= 0:
-                grip, grip_step = (cell.eef_position() - cell.object_positions()[cell.suction.held]) * 100, step
+                grip, grip_step = cell.grip_offset() * 100, step
             if success_step is None and info["is_success"]:
                 success_step = step
             executed = info["executed_action"]

@@ -34,8 +34,7 @@ def replay(agent: HerDDPG, env, seed: int) -> dict[str, float]:
 
     def first_hold(env, info) -> None:
         if info["held"] and not grip:
-            cell = env.cell
-            grip.append(cell.eef_position() - cell.object_positions()[cell.suction.held])
+            grip.append(env.cell.grip_offset())
 
     info, _ = run_episode(agent, env, seed=seed, on_step=first_hold)
     error = (info["achieved_goal"] - info["desired_goal"]).reshape(-1, env.dims_per_object)

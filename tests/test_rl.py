@@ -383,6 +383,7 @@ def test_auto_suction_acts_with_the_joints_only_and_grips_what_the_cup_touches()
                                 auto.max_joint_step, 1.0])
     auto.reset(seed=3)
     cell, part = auto.cell, auto.goal_objects[0]
+    assert cell.grip_offset() is None  # nothing in the cup
     from hrc_lab.env.robot.expert import ScriptedExpert
 
     expert = ScriptedExpert(cell)  # the expert's joint motion, with its suction command dropped
@@ -395,6 +396,9 @@ def test_auto_suction_acts_with_the_joints_only_and_grips_what_the_cup_touches()
         if cell.suction.held == part and held_at is None:
             held_at = t
     assert held_at is not None and cell.suction.held == part  # gripped on touch and never released
+    offset = cell.grip_offset()  # the lip against the held part's centre: on its top face, near the centre
+    np.testing.assert_allclose(offset, cell.eef_position() - cell.object_positions()[part])
+    assert np.linalg.norm(offset[:2]) < 0.01 and 0.0 < offset[2] < 0.05
     with pytest.raises(ValueError, match="rl.suction=action"):
         add_demonstrations(build_ddpg_her(cfg, auto, seed=0), auto, 1)
     auto.close()

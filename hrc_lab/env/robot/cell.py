@@ -544,6 +544,11 @@ class HRCCell(ManipulationEnv):
         """Position of the cup's lip (r in the thesis)."""
         return self.sim.data.site_xpos[self._grip_site].copy()
 
+    def grip_offset(self) -> np.ndarray | None:
+        """The lip minus the centre of the part the cup holds (m); None when it holds none."""
+        held = self.suction.held
+        return None if held < 0 else self.eef_position() - self.object_positions()[held]
+
     def eef_quaternion(self) -> np.ndarray:
         """Orientation (w, x, y, z) of the body that carries the lip (the end-effector pose of 3.3's DRL state)."""
         return self.sim.data.xquat[self.sim.model._model.site_bodyid[self._grip_site]].copy()
