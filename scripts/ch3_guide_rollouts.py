@@ -7,11 +7,13 @@ episode first succeeded, the steps in which a joint moved at its limit, and, in 
 minus the part's goal (the planner's error), the lip minus that sub-goal (the dynamic planner's), the lip minus
 the part's centre when the cup gripped it (the grip's offset) and the part minus its goal; then the success rate.
 A placing sub-goal is the lip's, so a right one is ~2.2 cm above the goal (the part's half height).
-Scenes: the run's seed + 1000, not its training scenes.
+Scenes: the run's seed + 1000, not its training scenes. ``--residuals`` first prints the sub-goal planner's mean
+and std residual (predicted minus demonstrated sub-goal, cm) on its own training pairs per stage label and
+sub-goal index: a mean far from 0 is an underfit planner, not a hard scene.
 
     .venv/bin/python scripts/ch3_guide_rollouts.py <MLflow run id> --subtask 1 [--episodes 12]
         [--stage-starts demonstrated,executed] [--steps 40] [--subgoal-steps 4] [--subgoal-tolerance 0.008]
-        [--set motion.place_through_grasp=true] [--tracking-uri URI]
+        [--set motion.place_through_grasp=true] [--residuals] [--tracking-uri URI]
 """
 
 import argparse
@@ -25,7 +27,8 @@ from mlflow.tracking import MlflowClient
 from omegaconf import OmegaConf
 
 from hrc_lab.config import ConfigError, validate_config
-from hrc_lab.experiments.ch3_rl import train_guide_models
+from hrc_lab.experiments.ch3_rl import guide_demos, train_guide_models
+from hrc_lab.motion.two_level import correction_pairs
 from hrc_lab.rl import RLS
 from hrc_lab.rl.goal_env import make_goal_env
 from hrc_lab.rl.guidance import CorrectionGuide, GuidedEnv
@@ -33,6 +36,17 @@ from hrc_lab.run_context import unlogged_trainer
 from hrc_lab.tracking import saved_run
 
 ROLLOUT_SCENES = 1000  # the rollouts' scene seed: the run's seed + this (not its training or evaluation scenes)
+
+
+def print_residuals(planner, pairs) -> None:
+    """Mean and std of the planner's sub-goal minus the demonstrated one (cm) per stage label and sub-goal index."""
+    predicted, _ = planner.predict(pairs.x, pairs.labels, pairs.indices, pairs.references)
+    residual = (predicted - pairs.subgoals) * 100
+    print("planner residual on its training pairs, cm (x, y, z)")
+    for label, index in sorted({*zip(pairs.labels.tolist(), pairs.indices.tolist())}):
+        rows = residual[(pairs.labels == label) & (pairs.indices == index)]
+        print(f"  label {label} sub-goal {index}: mean {np.round(rows.mean(0), 2)}, std {np.round(rows.std(0), 2)}, "
+              f"{len(rows)} pairs", flush=True)
 
 
 def main() -> None:
@@ -47,6 +61,8 @@ def main() -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="replace a key of the run's config before the guide is trained, e.g. "
                              "motion.place_through_grasp=true (repeatable)")
+    parser.add_argument("--residuals", action="store_true",
+                        help="print the sub-goal planner's residuals on its training pairs first")
     parser.add_argument("--tracking-uri", default="sqlite:///runs/mlflow.db")
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -65,7 +81,11 @@ def main() -> None:
         except ConfigError as error:
             parser.error(f"--set: {error}")
     starts = tuple(args.stage_starts.split(",")) if args.stage_starts else tuple(cfg.protocol.stage_starts)
-    classifier, planner, ndp = train_guide_models(cfg, saved.seed, unlogged_trainer(cfg.trainer), starts)
+    demonstrations = guide_demos(cfg, saved.seed)
+    classifier, planner, ndp = train_guide_models(cfg, saved.seed, unlogged_trainer(cfg.trainer), starts,
+                                                  demonstrations)
+    if args.residuals:
+        print_residuals(planner, correction_pairs(demonstrations[1], starts, cfg.motion.planner_input))
     changes = {k: v for k, v in (("steps_per_subtask", args.steps), ("subgoal_steps", args.subgoal_steps),
                                  ("subgoal_tolerance", args.subgoal_tolerance)) if v is not None}
     rl = RLS.derive(cfg.rl, lam=1.0, delta_g=1e-6, **changes)

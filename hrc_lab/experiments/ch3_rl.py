@@ -41,13 +41,9 @@ def guided(ctx: RunContext) -> bool:
 GUIDE_DEMO_STREAM = 5  # the guide's demonstrations draw from the run's random stream [seed, 5] (RunContext.rng)
 
 
-def train_guide_models(cfg, seed: int, trainer, stage_starts: tuple[str, ...] | None = None):
-    """Classifier c(x), sub-goal planner and neural dynamic planner of the Ch.3 two-level planner, trained as Table
-    3.1 trains them on ``protocol.demos`` expert demonstrations of ``cfg.env`` (``trainer(prefix)`` builds each
-    Lightning Trainer; ``stage_starts`` replaces ``protocol.stage_starts``). Also used by
-    ``scripts/ch3_guide_rollouts.py``."""
+def guide_demos(cfg, seed: int):
+    """The ``protocol.demos`` expert demonstrations of ``cfg.env`` the guide learns from, with the env they ran in."""
     from hrc_lab.motion.demonstrations import correction_demos
-    from hrc_lab.motion.training import train_two_level
 
     protocol = cfg.protocol
     env = ENVS.build(cfg.env, seed=seed)
@@ -56,8 +52,19 @@ def train_guide_models(cfg, seed: int, trainer, stage_starts: tuple[str, ...] | 
                              np.random.default_rng([seed, GUIDE_DEMO_STREAM]), subgoal_path=protocol.subgoal_path)
     if not demos:
         raise RuntimeError(f"no successful expert demonstration in {protocol.demos} for {cfg.env.cell}")
-    return train_two_level(cfg.motion, env, demos, tuple(stage_starts or protocol.stage_starts),
-                           protocol.subgoals_per_stage, trainer, seed)
+    return env, demos
+
+
+def train_guide_models(cfg, seed: int, trainer, stage_starts: tuple[str, ...] | None = None, demonstrations=None):
+    """Classifier c(x), sub-goal planner and neural dynamic planner of the Ch.3 two-level planner, trained as Table
+    3.1 trains them on the guide's demonstrations (``demonstrations``: :func:`guide_demos`' (env, demos), made here
+    when None; ``trainer(prefix)`` builds each Lightning Trainer; ``stage_starts`` replaces
+    ``protocol.stage_starts``). Also used by ``scripts/ch3_guide_rollouts.py``."""
+    from hrc_lab.motion.training import train_two_level
+
+    env, demos = demonstrations or guide_demos(cfg, seed)
+    return train_two_level(cfg.motion, env, demos, tuple(stage_starts or cfg.protocol.stage_starts),
+                           cfg.protocol.subgoals_per_stage, trainer, seed)
 
 
 def train_guide(ctx: RunContext):
