@@ -140,7 +140,8 @@ class SubgoalConfig:
     # (red's: within 0.2 cm); at motion.steps=18000 every label's is within 0.2 cm, and the guide alone with both
     # placed blue in 20 of 20 episodes and red in 16 (scripts/ch3_guide_rollouts.py --residuals).
     # In Algorithm 1 (two objects, 60 steps, 2 seeds) red's final policies rose from 0.34 / 0.37 (seed 0) to
-    # 0.57 / 0.70. Off (docs/chapters/ch3_rl.md)
+    # 0.57 / 0.70, and with motion.steps=18000 to 0.75 / 0.70 (both parts 0.86 / 0.85, lambda 0.7 / 1). Off, so
+    # that the runs before it keep their meaning (docs/chapters/ch3_rl.md)
     place_through_grasp: bool = False
     ndp: NDPConfig = field(default_factory=NDPConfig)
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)  # Ch.3's c(x); Ch.4 labels its stages
