@@ -27,7 +27,7 @@ from mlflow.tracking import MlflowClient
 from hrc_lab.config import ConfigError, default_tracking_uri, validate_config
 from hrc_lab.processes import process_start
 from hrc_lab.run_naming import CONF_DIR
-from hrc_lab.tracking import changed_settings, resolve_tracking_uri
+from hrc_lab.tracking import changed_settings, composed_today, resolve_tracking_uri
 
 
 def runs_where(client: MlflowClient, query: str) -> list:
@@ -118,8 +118,6 @@ def same_job(ended, others: list, overrides: list[str]) -> list:
     (``overrides``, its task overrides) composes to today: the default that keeps what ``ended`` ran. So a run that
     sets a key added since ``ended`` ran away from its default does another job. Where the runs log and write (the
     neutral groups) is not the job."""
-    from hrc_lab.report.defaults import composed_today
-
     alike = [other for other in others if not changed_settings(job_of(ended), job_of(other))]
     today = composed_today(tuple(overrides)) if alike else None
     if today is None:  # none alike, or a job that no longer composes (which cannot resume either)

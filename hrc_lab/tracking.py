@@ -5,6 +5,7 @@ never share state; the tracking URI is one config key (``logger.tracking_uri``),
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 import socket
@@ -20,11 +21,12 @@ from lightning.pytorch.loggers import MLFlowLogger
 from mlflow.entities import Metric, Param
 from mlflow.exceptions import MlflowException
 from mlflow.tracking import MlflowClient
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, OmegaConf, open_dict
 
 from hrc_lab.config import LoggerConfig, register_schemas, validate_config
 from hrc_lab.interrupts import RunInterrupted
 from hrc_lab.processes import machine_identity, process_start
+from hrc_lab.run_naming import CONF_DIR, NEUTRAL_KEYS
 
 # A job logging to a tracking server gives up on it within ~30 s (MLflow's defaults retry for minutes: 7 retries,
 # backoff factor 2, 120 s per request); each is a default the user's environment may set otherwise.
@@ -133,13 +135,56 @@ def flatten(node, prefix: str = "") -> dict[str, str]:
 def job_settings(cfg: DictConfig) -> dict[str, str]:
     """The flattened, resolved settings of ``cfg`` that make its job: all but the neutral groups' (where a run logs
     and writes, :data:`hrc_lab.run_naming.NEUTRAL_KEYS`) and those interpolated from them."""
-    from hrc_lab.run_naming import NEUTRAL_KEYS
-
     neutral_reference = re.compile(r"\$\{(" + "|".join(NEUTRAL_KEYS) + r")\.")
     resolved = flatten(OmegaConf.to_container(cfg, resolve=True))
     raw = flatten(OmegaConf.to_container(cfg, resolve=False))
     return {key: value for key, value in resolved.items()
             if key.split(".")[0] not in NEUTRAL_KEYS and not neutral_reference.search(raw.get(key, ""))}
+
+
+@functools.cache
+def _composed_groups(overrides: tuple[str, ...]):
+    """The config the group-choosing ``overrides`` compose from today's ``conf/`` (no ``hydra`` node), or None."""
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+    from hydra._internal.utils import create_config_search_path
+    from hydra.core.plugins import Plugins
+    from hydra.types import RunMode
+
+    register_schemas()
+    Plugins.instance()
+    loader = ConfigLoaderImpl(config_search_path=create_config_search_path(str(CONF_DIR)))
+    try:
+        cfg = loader.load_configuration("config", list(overrides), RunMode.RUN)
+    except Exception:  # an option or key that no longer exists
+        return None
+    with open_dict(cfg):
+        del cfg["hydra"]
+    return cfg
+
+
+def _chooses_a_config(override: str) -> bool:
+    """A group choice (``env=...``, ``hydra/launcher=...``) or an addition / deletion, as opposed to a value."""
+    key = override.split("=", 1)[0]
+    return key.startswith(("+", "~")) or "/" in key or ("." not in key and (CONF_DIR / key).is_dir())
+
+
+@functools.cache
+def composed_today(overrides: tuple[str, ...]) -> dict[str, str] | None:
+    """The flattened, resolved config that ``overrides`` (a job's task overrides) compose from today's ``conf/``,
+    without the neutral groups' settings and those interpolated from them; None when they no longer compose. The
+    group choices are composed once per set, values then set on a copy (both cached: treat the result as read-only)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    base = _composed_groups(tuple(o for o in overrides if _chooses_a_config(o)))
+    if base is None:
+        return None
+    cfg = base.copy()
+    try:
+        for override in OverridesParser.create().parse_overrides([o for o in overrides if not _chooses_a_config(o)]):
+            OmegaConf.update(cfg, override.key_or_group, override.value(), merge=True)
+        return job_settings(cfg)
+    except Exception:  # a key that no longer exists, a value its schema no longer accepts, an interpolation
+        return None
 
 
 def process_identity(pid: int | None = None) -> dict[str, str]:

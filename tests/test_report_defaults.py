@@ -3,10 +3,10 @@
 import pandas as pd
 
 from hrc_lab.report.build import ABLATION_MARK, moved_headings
-from hrc_lab.report.defaults import PARAM_PREFIX, composed_today, pin_changed_defaults, pinned_settings
+from hrc_lab.report.defaults import PARAM_PREFIX, pin_changed_defaults, pinned_settings
 from hrc_lab.report.sections import Section
 from hrc_lab.run_naming import variant_of
-from hrc_lab.tracking import MAX_PARAM, changed_settings
+from hrc_lab.tracking import MAX_PARAM, changed_settings, composed_today
 
 JOB = "experiment=ch3/table_3_1 motion=tc_vi env=error_correction_one_object_case1 seed=1"
 

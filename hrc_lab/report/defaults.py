@@ -15,63 +15,14 @@ the run's variant: such a run is what today's command computes.
 
 from __future__ import annotations
 
-import functools
 import re
 
 import pandas as pd
-from omegaconf import OmegaConf, open_dict
 
-from hrc_lab.run_naming import CONF_DIR, variant_of
-from hrc_lab.tracking import changed_settings, job_settings
+from hrc_lab.run_naming import variant_of
+from hrc_lab.tracking import changed_settings, composed_today
 
 PARAM_PREFIX = "param."  # params (the resolved config, dotted keys) are columns "param.<key>"
-
-
-@functools.cache
-def _composed_groups(overrides: tuple[str, ...]):
-    """The config the group-choosing ``overrides`` compose from today's ``conf/`` (no ``hydra`` node), or None."""
-    from hydra._internal.config_loader_impl import ConfigLoaderImpl
-    from hydra._internal.utils import create_config_search_path
-    from hydra.core.plugins import Plugins
-    from hydra.types import RunMode
-
-    from hrc_lab.config import register_schemas
-
-    register_schemas()
-    Plugins.instance()
-    loader = ConfigLoaderImpl(config_search_path=create_config_search_path(str(CONF_DIR)))
-    try:
-        cfg = loader.load_configuration("config", list(overrides), RunMode.RUN)
-    except Exception:  # an option or key that no longer exists
-        return None
-    with open_dict(cfg):
-        del cfg["hydra"]
-    return cfg
-
-
-def _chooses_a_config(override: str) -> bool:
-    """A group choice (``env=...``, ``hydra/launcher=...``) or an addition / deletion, as opposed to a value."""
-    key = override.split("=", 1)[0]
-    return key.startswith(("+", "~")) or "/" in key or ("." not in key and (CONF_DIR / key).is_dir())
-
-
-@functools.cache
-def composed_today(overrides: tuple[str, ...]) -> dict[str, str] | None:
-    """The flattened, resolved config that ``overrides`` (a job's task overrides) compose from today's ``conf/``,
-    without the neutral groups' settings and those interpolated from them; None when they no longer compose. The
-    group choices are composed once per set, values then set on a copy (both cached: treat the result as read-only)."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
-    base = _composed_groups(tuple(o for o in overrides if _chooses_a_config(o)))
-    if base is None:
-        return None
-    cfg = base.copy()
-    try:
-        for override in OverridesParser.create().parse_overrides([o for o in overrides if not _chooses_a_config(o)]):
-            OmegaConf.update(cfg, override.key_or_group, override.value(), merge=True)
-        return job_settings(cfg)
-    except Exception:  # a key that no longer exists, a value its schema no longer accepts, an interpolation
-        return None
 
 
 def read_by_run(key: str, protocol: str | None, method: str | None) -> bool:
