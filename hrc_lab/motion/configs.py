@@ -128,20 +128,9 @@ class SubgoalConfig:
     planner_input: str = "full"
     # Ch.3 placing sub-goals are moved by the lip's horizontal offset from the held part's centre (measured when each
     # sub-goal is planned), so that the part, not the lip, reaches the planned place
-    # (hrc_lab.motion.two_level.grasp_shift). The demonstrations grip parts at their centre, so the planner learned
-    # lip sub-goals for a centred grip; not in the thesis. Without it, Fig. 3.13's second object (red) landed 1-2.5
-    # cm short of its goal in 11 of 20 episodes of a final policy, by the grip's offset. The guide alone, 20
-    # episodes: red at 60 steps 0.85 with it, 0.70 without (0.75 with the offset measured once, as the cup took the
-    # part); but blue, the two-object case's first part, 0.85 with it, 1.00 without, and the one-object part 0.80,
-    # 0.85 without (seed 0's guide). Blue's planner already sets its last sub-goals 0.5-0.8 cm off the goal, about
-    # where blue's grip needs the lip (not learned: the expert grips within 0.2 cm of the centre), so the shift
-    # doubles the correction; red's planner has no such offset. That offset is the planner's underfit at 6000
-    # gradient steps: its mean residual on its own training pairs is -0.55 cm along y for both of blue's labels
-    # (red's: within 0.2 cm); at motion.steps=18000 every label's is within 0.2 cm, and the guide alone with both
-    # placed blue in 20 of 20 episodes and red in 16 (scripts/ch3_guide_rollouts.py --residuals).
-    # In Algorithm 1 (two objects, 60 steps, 2 seeds) red's final policies rose from 0.34 / 0.37 (seed 0) to
-    # 0.57 / 0.70, and with motion.steps=18000 to 0.75 / 0.70 (both parts 0.86 / 0.85, lambda 0.7 / 1). Off, so
-    # that the runs before it keep their meaning (docs/chapters/ch3_rl.md)
+    # (hrc_lab.motion.two_level.grasp_shift); not in the thesis. The demonstrations grip parts at their centre, so the
+    # planner learned lip sub-goals for a centred grip. Off, so that the runs before it keep their meaning; its
+    # measured effect, with and without a longer-trained planner: docs/chapters/ch3_rl.md ("Placing through the grip")
     place_through_grasp: bool = False
     ndp: NDPConfig = field(default_factory=NDPConfig)
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)  # Ch.3's c(x); Ch.4 labels its stages
