@@ -127,7 +127,7 @@ def _hydra_main(cfg: DictConfig) -> float | None:
         print(f"hrc-lab: config error: {err}", file=sys.stderr)
         sys.exit(2)
     except RunInterrupted as err:
-        print(f"hrc-lab: {err}; the MLflow run is marked KILLED (resume with resume_from=<run id>)", file=sys.stderr)
+        print(f"hrc-lab: {interrupted_message(err)}", file=sys.stderr)
         exit_interrupted(err)
     except Exception as err:
         from hrc_lab.tracking import TrackingUnavailable  # imported by run() already (kept off the config path)
@@ -137,6 +137,14 @@ def _hydra_main(cfg: DictConfig) -> float | None:
         print(f"hrc-lab: {err}", file=sys.stderr)
         sys.exit(1)
     return objective_value(cfg, metrics)
+
+
+def interrupted_message(err: RunInterrupted) -> str:
+    """What an interrupted job tells its user: the MLflow run it marked KILLED and how to resume it, or that it
+    was stopped before it started one."""
+    if err.killed_run_id is None:
+        return f"{err} before its MLflow run started; nothing to resume"
+    return f"{err}; MLflow run {err.killed_run_id} is marked KILLED (resume with resume_from={err.killed_run_id})"
 
 
 def objective_value(cfg: DictConfig, metrics: dict[str, float]) -> float | None:

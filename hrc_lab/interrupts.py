@@ -21,6 +21,7 @@ class RunInterrupted(BaseException):
     def __init__(self, signum: int) -> None:
         self.signum = signum
         self.signal_name = signal.Signals(signum).name
+        self.killed_run_id: str | None = None  # the MLflow run it ended (set by the run's tracker), None before one
         super().__init__(f"interrupted by {self.signal_name}")
 
     def __reduce__(self):  # pickled by its signal number, e.g. when a launcher's worker sends it to its parent

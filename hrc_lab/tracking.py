@@ -221,6 +221,7 @@ class RunTracker:
     def __exit__(self, exc_type, exc, tb) -> None:
         if isinstance(exc, RunInterrupted):
             self.client.set_tag(self.run_id, "signal", exc.signal_name)
+            exc.killed_run_id = self.run_id
             status = "KILLED"
         else:
             status = "FAILED" if exc_type else "FINISHED"

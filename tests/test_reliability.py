@@ -22,7 +22,7 @@ from mlflow.tracking import MlflowClient
 from omegaconf import OmegaConf
 from torch.utils.data import TensorDataset
 
-from hrc_lab.cli import check_resumable
+from hrc_lab.cli import check_resumable, interrupted_message
 from hrc_lab.config import LoggerConfig, validate_config
 from hrc_lab.interrupts import RunInterrupted, signals_raise
 from hrc_lab.kernels import cpu_kernels
@@ -77,9 +77,20 @@ def test_a_signal_marks_the_run_killed(tmp_path, signum, code):
     assert caught.value.exit_code == code
     run = MlflowClient(tracker.tracking_uri).get_run(tracker.run_id)
     assert run.info.status == "KILLED"
+    assert f"resume_from={tracker.run_id}" in interrupted_message(caught.value)
     assert run.data.tags["signal"] == signal.Signals(signum).name
     assert run.data.tags["pid"] == str(os.getpid()) and run.data.tags["host"]
     assert {s: signal.getsignal(s) for s in before} == before  # handlers restored
+
+
+def test_a_job_interrupted_before_its_run_started_says_there_is_nothing_to_resume():
+    """A sweep stopped while a job still composed or imported left no MLflow run; its message offered one."""
+    with pytest.raises(RunInterrupted) as caught, signals_raise():
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)
+    assert caught.value.killed_run_id is None
+    message = interrupted_message(caught.value)
+    assert message == "interrupted by SIGTERM before its MLflow run started; nothing to resume"
 
 
 def test_an_interrupted_job_ends_its_launcher_worker():
