@@ -26,8 +26,7 @@ from mlflow.tracking import MlflowClient
 
 from hrc_lab.config import ConfigError, default_tracking_uri, validate_config
 from hrc_lab.processes import process_start
-from hrc_lab.run_naming import CONF_DIR
-from hrc_lab.tracking import changed_settings, composed_today, resolve_tracking_uri
+from hrc_lab.tracking import changed_settings, compose_today, composed_today, resolve_tracking_uri
 
 
 def runs_where(client: MlflowClient, query: str) -> list:
@@ -89,21 +88,13 @@ def job_overrides(client: MlflowClient, run) -> list[str]:
 def why_not_resumable(overrides: list[str]) -> str | None:
     """Why ``hrc-lab <overrides>`` (with its ``resume_from``) would fail its resume check today (e.g. the run's
     config is from before keys that exist now), or None when it would pass."""
-    from hydra import compose, initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
-    from hydra.errors import HydraException
-
     from hrc_lab.cli import check_resumable
 
-    GlobalHydra.instance().clear()
     try:
-        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-            cfg = compose("config", overrides=overrides)
+        cfg = compose_today(tuple(overrides))
         check_resumable(validate_config(cfg), cfg)
-    except (ConfigError, HydraException) as err:
+    except ConfigError as err:
         return str(err).splitlines()[0]
-    finally:
-        GlobalHydra.instance().clear()
     return None
 
 

@@ -23,7 +23,7 @@ from mlflow.exceptions import MlflowException
 from mlflow.tracking import MlflowClient
 from omegaconf import DictConfig, OmegaConf, open_dict
 
-from hrc_lab.config import LoggerConfig, register_schemas, validate_config
+from hrc_lab.config import ConfigError, LoggerConfig, register_schemas, validate_config
 from hrc_lab.interrupts import RunInterrupted
 from hrc_lab.processes import machine_identity, process_start
 from hrc_lab.run_naming import CONF_DIR, NEUTRAL_KEYS
@@ -143,8 +143,9 @@ def job_settings(cfg: DictConfig) -> dict[str, str]:
 
 
 @functools.cache
-def _composed_groups(overrides: tuple[str, ...]):
-    """The config the group-choosing ``overrides`` compose from today's ``conf/`` (no ``hydra`` node), or None."""
+def _composed_groups(overrides: tuple[str, ...]) -> DictConfig:
+    """The config the group-choosing ``overrides`` compose from today's ``conf/``, without its ``hydra`` node
+    (cached: callers copy it)."""
     from hydra._internal.config_loader_impl import ConfigLoaderImpl
     from hydra._internal.utils import create_config_search_path
     from hydra.core.plugins import Plugins
@@ -153,10 +154,7 @@ def _composed_groups(overrides: tuple[str, ...]):
     register_schemas()
     Plugins.instance()
     loader = ConfigLoaderImpl(config_search_path=create_config_search_path(str(CONF_DIR)))
-    try:
-        cfg = loader.load_configuration("config", list(overrides), RunMode.RUN)
-    except Exception:  # an option or key that no longer exists
-        return None
+    cfg = loader.load_configuration("config", list(overrides), RunMode.RUN)
     with open_dict(cfg):
         del cfg["hydra"]
     return cfg
@@ -168,22 +166,29 @@ def _chooses_a_config(override: str) -> bool:
     return key.startswith(("+", "~")) or "/" in key or ("." not in key and (CONF_DIR / key).is_dir())
 
 
-@functools.cache
-def composed_today(overrides: tuple[str, ...]) -> dict[str, str] | None:
-    """The flattened, resolved config that ``overrides`` (a job's task overrides) compose from today's ``conf/``,
-    without the neutral groups' settings and those interpolated from them; None when they no longer compose. The
-    group choices are composed once per set, values then set on a copy (both cached: treat the result as read-only)."""
+def compose_today(overrides: tuple[str, ...]) -> DictConfig:
+    """The config (no ``hydra`` node) that ``overrides`` (a job's task overrides) compose from today's ``conf/``,
+    as ``hydra.compose`` would; :class:`ConfigError` with the first line of the reason when they no longer compose
+    (an option or key that no longer exists, a value its schema no longer accepts). The group choices are composed
+    once per set (cached), the values then set on a copy."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    base = _composed_groups(tuple(o for o in overrides if _chooses_a_config(o)))
-    if base is None:
-        return None
-    cfg = base.copy()
     try:
+        cfg = _composed_groups(tuple(o for o in overrides if _chooses_a_config(o))).copy()
         for override in OverridesParser.create().parse_overrides([o for o in overrides if not _chooses_a_config(o)]):
             OmegaConf.update(cfg, override.key_or_group, override.value(), merge=True)
-        return job_settings(cfg)
-    except Exception:  # a key that no longer exists, a value its schema no longer accepts, an interpolation
+    except Exception as err:  # Hydra's and OmegaConf's errors, whose first line names the key or option
+        raise ConfigError(str(err).splitlines()[0] if str(err) else type(err).__name__) from err
+    return cfg
+
+
+@functools.cache
+def composed_today(overrides: tuple[str, ...]) -> dict[str, str] | None:
+    """:func:`job_settings` of :func:`compose_today`, or None when ``overrides`` no longer compose or resolve
+    (cached, for the reports' thousands of runs: treat the result as read-only)."""
+    try:
+        return job_settings(compose_today(overrides))
+    except Exception:  # no longer composes (ConfigError), or an interpolation that no longer resolves
         return None
 
 

@@ -1,12 +1,15 @@
 """Runs made under an older default read as their own section (hrc_lab.report.defaults)."""
 
 import pandas as pd
+import pytest
+from omegaconf import OmegaConf
 
+from hrc_lab.config import ConfigError
 from hrc_lab.report.build import ABLATION_MARK, moved_headings
 from hrc_lab.report.defaults import PARAM_PREFIX, pin_changed_defaults, pinned_settings
 from hrc_lab.report.sections import Section
 from hrc_lab.run_naming import variant_of
-from hrc_lab.tracking import MAX_PARAM, changed_settings, composed_today
+from hrc_lab.tracking import MAX_PARAM, changed_settings, compose_today, composed_today
 
 JOB = "experiment=ch3/table_3_1 motion=tc_vi env=error_correction_one_object_case1 seed=1"
 
@@ -24,6 +27,15 @@ def test_a_run_that_today_s_command_repeats_pins_nothing():
     today = composed_today(tuple(JOB.split()))
     assert today["motion.steps"] == "6000" and today["seed"] == "1" and "logger.tracking_uri" not in today
     assert pinned_settings(pd.Series(logged_run())) == []
+
+
+def test_today_s_config_is_what_hydra_composes_and_names_why_not(compose_config):
+    overrides = [*JOB.split(), "motion.steps=2000", "+protocol.extra=1"]
+    assert OmegaConf.to_container(compose_today(tuple(overrides))) == OmegaConf.to_container(compose_config(*overrides))
+    with pytest.raises(ConfigError, match="motion/gone"):
+        compose_today((*JOB.split(), "motion=gone"))
+    with pytest.raises(ConfigError, match="no_such_key"):
+        compose_today(("experiment=ch3/table_3_1", "motion.no_such_key=1"))
 
 
 def test_changed_defaults_are_pinned_as_overrides():
