@@ -24,8 +24,8 @@ class RunInterrupted(BaseException):
         self.killed_run_id: str | None = None  # the MLflow run it ended (set by the run's tracker), None before one
         super().__init__(f"interrupted by {self.signal_name}")
 
-    def __reduce__(self):  # pickled by its signal number, e.g. when a launcher's worker sends it to its parent
-        return type(self), (self.signum,)
+    def __reduce__(self):  # pickled with the run it ended, e.g. when a launcher's worker sends it to its parent
+        return type(self), (self.signum,), {"killed_run_id": self.killed_run_id}
 
     @property
     def exit_code(self) -> int:

@@ -105,7 +105,9 @@ def test_an_interrupted_job_ends_its_launcher_worker():
     from hrc_lab.interrupts import exit_interrupted
 
     interrupted = RunInterrupted(signal.SIGTERM)
-    assert pickle.loads(pickle.dumps(interrupted)).exit_code == 143
+    interrupted.killed_run_id = "abc123"
+    unpickled = pickle.loads(pickle.dumps(interrupted))
+    assert (unpickled.exit_code, unpickled.killed_run_id) == (143, "abc123")
     with pytest.raises(TerminatedWorkerError, match=r"EXIT\(143\)"):
         Parallel(n_jobs=2, backend="loky")(delayed(exit_interrupted)(interrupted) for _ in range(2))
     with pytest.raises(SystemExit) as caught:
