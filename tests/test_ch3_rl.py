@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
     ("ch3/fig_3_13", ["rl.cycles_per_epoch=0"], "rl.cycles_per_epoch"),
     ("ch3/fig_3_13", ["rl.n_envs=0"], "rl.n_envs"),
     ("ch3/fig_3_13", ["rl=none"], "rl"),
-    ("ch3/fig_3_12", ["motion.ndp.mode=regression"], "rl.guidance=ndp_direction needs motion.ndp.mode"),
+    ("ch3/fig_3_12", ["rl.guidance=ndp_direction"], "rl.guidance=ndp_direction needs motion.ndp.mode"),
     ("ch3/fig_3_12", ["rl.reward=shaped"], "rl.reward"),
     ("ch3/fig_3_13", ["rl.stage_labels=oracle"], "rl.stage_labels"),
     ("ch3/fig_3_13", ["protocol.final_eval_episodes=-1"], "protocol.final_eval_episodes"),
