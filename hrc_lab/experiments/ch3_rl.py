@@ -1,5 +1,5 @@
 """Ch.3 hybrid hierarchical guided RL (thesis 3.2.3 Algorithm 1, 3.3, 3.4.3): Fig. 3.13 (error correction, guidance
-ratio lambda), Fig. 3.12 (place and stack, direction-only NDP guidance vs none) and Fig. 3.9 (the end effector's
+ratio lambda), Fig. 3.12 (place and stack, NDP guidance vs none) and Fig. 3.9 (the end effector's
 distance to the planner's sub-goal, the goal-state positional difference, in guided vs unguided exploration).
 
 The two-level planner (task classifier c(x), sub-goal planner h, neural dynamic planner d) is trained from the

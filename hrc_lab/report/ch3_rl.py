@@ -1,5 +1,5 @@
 """Report sections of the Ch.3 guided-RL experiments (Algorithm 1): Fig. 3.13 (hybrid vs full guidance vs pure
-exploration on error correction), Fig. 3.12 (place and stack, direction-only NDP guidance vs none) and Fig. 3.9
+exploration on error correction), Fig. 3.12 (place and stack, NDP guidance vs none) and Fig. 3.9
 (the goal-state positional difference in guided vs unguided exploration). Curves come from the runs' per-epoch
 metric histories (MLflow metrics logged with step = epoch; an epoch is defined in
 :mod:`hrc_lab.experiments.ch3_rl`)."""
@@ -276,7 +276,7 @@ def fig_3_12(runs: pd.DataFrame) -> Section:
              + epoch_text(runs))
     thesis = ("Thesis (Fig. 3.12): the DRL agent guided by the direction-only NDP learns both tasks faster than "
               "unguided DRL (curves only; no final numbers are stated).")
-    return curves_section(runs, "Fig. 3.12: place and stack, direction-only NDP guidance vs unguided DRL", intro,
+    return curves_section(runs, "Fig. 3.12: place and stack, NDP guidance vs unguided DRL", intro,
                           thesis, "fig_3_12.png")
 
 
