@@ -34,13 +34,13 @@ log = logging.getLogger("hrc_lab")
 
 def check_resumable(validated: ValidatedConfig, cfg: DictConfig) -> None:
     """``resume_from`` must name a run of this experiment that was killed or failed, not tagged ``invalidated``
-    (results known to be wrong, the tag says why), with the same config (keys added since it ran, and where runs
-    log and write, aside)."""
+    (results known to be wrong, the tag says why), with the same config (a key added since it ran as its schema
+    default; where runs log and write aside)."""
     from mlflow.exceptions import MlflowException
     from mlflow.tracking import MlflowClient
     from omegaconf import OmegaConf
 
-    from hrc_lab.tracking import changed_settings, flatten, job_settings, resolve_tracking_uri
+    from hrc_lab.tracking import changed_settings, flatten, job_settings, resolve_tracking_uri, schema_defaults
 
     client = MlflowClient(resolve_tracking_uri(validated.logger.tracking_uri))
     try:
@@ -64,7 +64,7 @@ def check_resumable(validated: ValidatedConfig, cfg: DictConfig) -> None:
     ours = flatten(OmegaConf.to_container(cfg, resolve=True))
     job = job_settings(cfg)  # where the runs log and write may differ (another working directory, a moved store)
     theirs = parent.data.params
-    differ = [key for key in changed_settings(theirs, ours) if key in job or key not in ours]
+    differ = [key for key in changed_settings(theirs, ours, schema_defaults(cfg)) if key in job or key not in ours]
     if differ:
         shown = ", ".join(f"{k}={theirs.get(k)!r} there, {ours.get(k)!r} here" for k in differ[:5])
         raise ConfigError(f"resume_from: run {validated.resume_from} had another config: {shown}")

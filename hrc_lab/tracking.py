@@ -111,12 +111,42 @@ def ensure_experiment(client: MlflowClient, name: str, artifact_root: str) -> st
 MAX_PARAM = 6000  # MLflow keeps the first 6000 characters of a param (RunTracker.log_config)
 
 
-def changed_settings(logged: dict[str, str], config: dict[str, str]) -> list[str]:
+def changed_settings(logged: dict[str, str], config: dict[str, str], defaults: dict[str, str] | None = None
+                     ) -> list[str]:
     """The keys a run logged (``logged``: its params) to which ``config`` (a flattened config, :func:`flatten`) gives
-    another value, or which it lacks; sorted. A key the run did not log was added since it ran, with a default that
-    keeps what ran before, and is not compared: the one rule by which a resume, a report and ``hrc-lab-runs`` read an
-    older run under today's config."""
-    return sorted(key for key, value in logged.items() if key not in config or config[key][:MAX_PARAM] != value)
+    another value, or which it lacks, and the keys of ``config`` the run did not log (added since it ran) to a node it
+    logged other keys of, that ``config`` sets away from their schema default (``defaults``: :func:`schema_defaults`;
+    the key was added with a default that keeps what ran before, so the run ran with that default); sorted. The one
+    rule by which a resume, a report and ``hrc-lab-runs`` read an older run under today's config."""
+    changed = {key for key, value in logged.items() if key not in config or config[key][:MAX_PARAM] != value}
+    nodes = {key.rsplit(".", 1)[0] for key in logged if "." in key}  # a key is new to a node the run had
+    changed |= {key for key, value in config.items() if key not in logged and key in (defaults or {})
+                and defaults[key] != value and key.rsplit(".", 1)[0] in nodes}
+    return sorted(changed)
+
+
+def schema_defaults(cfg: DictConfig) -> dict[str, str]:
+    """Each setting of ``cfg`` as the schema of its node (the dataclass a group's config extends) defaults it,
+    flattened as :func:`flatten` flattens ``cfg``; settings of nodes without a schema, or without a default, are left
+    out. What a run that did not log a key (added since) ran with: :func:`changed_settings`."""
+    import dataclasses
+
+    out: dict[str, str] = {}
+
+    def walk(node: DictConfig, prefix: str) -> None:
+        schema = OmegaConf.get_type(node)
+        fields = {f.name: f for f in dataclasses.fields(schema)} if dataclasses.is_dataclass(schema) else {}
+        for key in node:
+            value = node._get_node(key)
+            if isinstance(value, DictConfig) and not value._is_none():
+                walk(value, f"{prefix}{key}.")
+            elif key in fields and fields[key].default is not dataclasses.MISSING:
+                out.update(flatten({key: fields[key].default}, prefix))
+            elif key in fields and fields[key].default_factory is not dataclasses.MISSING:
+                out.update(flatten({key: fields[key].default_factory()}, prefix))
+
+    walk(cfg, "")
+    return out
 
 
 def flatten(node, prefix: str = "") -> dict[str, str]:
@@ -190,6 +220,16 @@ def composed_today(overrides: tuple[str, ...]) -> dict[str, str] | None:
         return job_settings(compose_today(overrides))
     except Exception:  # no longer composes (ConfigError), or an interpolation that no longer resolves
         return None
+
+
+@functools.cache
+def schema_defaults_today(overrides: tuple[str, ...]) -> dict[str, str]:
+    """:func:`schema_defaults` of :func:`compose_today` (empty when ``overrides`` no longer compose; cached, as
+    :func:`composed_today`)."""
+    try:
+        return schema_defaults(compose_today(overrides))
+    except ConfigError:
+        return {}
 
 
 def process_identity(pid: int | None = None) -> dict[str, str]:

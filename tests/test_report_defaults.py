@@ -9,7 +9,7 @@ from hrc_lab.report.build import ABLATION_MARK, moved_headings
 from hrc_lab.report.defaults import PARAM_PREFIX, pin_changed_defaults, pinned_settings
 from hrc_lab.report.sections import Section
 from hrc_lab.run_naming import variant_of
-from hrc_lab.tracking import MAX_PARAM, changed_settings, compose_today, composed_today
+from hrc_lab.tracking import MAX_PARAM, changed_settings, compose_today, composed_today, schema_defaults
 
 JOB = "experiment=ch3/table_3_1 motion=tc_vi env=error_correction_one_object_case1 seed=1"
 
@@ -105,10 +105,27 @@ def test_a_changed_nested_list_is_pinned_whole():
 
 
 def test_one_rule_reads_an_older_run_under_today_s_config():
-    """changed_settings: what the run logged is compared, a key added since is not, a key gone since is a change,
-    and a value is compared as MLflow keeps it (its first MAX_PARAM characters)."""
+    """changed_settings: what the run logged is compared, a key added since only as its schema default (and only in a
+    node the run logged), a key gone since is a change, and a value is compared as MLflow keeps it (its first
+    MAX_PARAM characters)."""
     long = "x" * (MAX_PARAM + 10)
     logged = {"motion.steps": "2000", "seed": "1", "gone": "1", "long": long[:MAX_PARAM]}
-    today = {"motion.steps": "6000", "seed": "1", "added_since": "0", "long": long}
+    today = {"motion.steps": "6000", "seed": "1", "motion.added_since": "0", "protocol.new": "1", "long": long}
     assert changed_settings(logged, today) == ["gone", "motion.steps"]
     assert changed_settings({}, today) == []
+    # a key added since to a node the run logged is compared as its schema default: the run ran with it
+    assert changed_settings(logged, today, {"motion.added_since": "0", "protocol.new": "0"}) == ["gone", "motion.steps"]
+    added = changed_settings(logged, today, {"motion.added_since": "1"})
+    assert added == ["gone", "motion.added_since", "motion.steps"]
+
+
+def test_a_key_added_since_that_an_experiment_sets_away_from_its_schema_default_is_pinned():
+    """Fig. 3.13 sets motion.place_through_grasp (added with the schema default False) to True: a run from before
+    the key existed placed without it, so it is pinned to the schema default, not read as today's default run."""
+    job = "experiment=ch3/fig_3_13 env=error_correction_one_object_case1 rl.lam=0.7 seed=0"
+    defaults = schema_defaults(compose_today(tuple(job.split())))
+    assert defaults["motion.place_through_grasp"] == "False" and defaults["rl.steps_per_subtask"] == "40"
+    run = logged_run(job)
+    assert pinned_settings(pd.Series(run)) == []
+    del run[f"{PARAM_PREFIX}motion.place_through_grasp"]
+    assert pinned_settings(pd.Series(run)) == ["motion.place_through_grasp=False"]

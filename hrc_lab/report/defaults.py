@@ -8,9 +8,10 @@ run's variant overrides, as if it had been given on the command line. Such runs 
 ("... — ablation: motion.steps=2000"), whose Reproduce line computes them again, and they share that section with
 runs that are given the same override explicitly. Settings of the neutral groups (where a run logs and writes) are
 never pinned, nor a protocol setting its schema marks as read only by other methods (``read_by``); a setting the run
-did not log (a key added since) is not compared; a run whose overrides no longer compose keeps its variant. The other
-way round, an override that today's defaults already give (``motion.steps=6000`` once 6000 is the default) leaves
-the run's variant: such a run is what today's command computes.
+did not log (a key added since) is compared as its schema default, the value that kept what ran before (pinned when an
+experiment file now sets it otherwise); a run whose overrides no longer compose keeps its variant. The other way
+round, an override that today's defaults already give (``motion.steps=6000`` once 6000 is the default) leaves the
+run's variant: such a run is what today's command computes.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import re
 import pandas as pd
 
 from hrc_lab.run_naming import variant_of
-from hrc_lab.tracking import changed_settings, composed_today
+from hrc_lab.tracking import changed_settings, composed_today, schema_defaults_today
 
 PARAM_PREFIX = "param."  # params (the resolved config, dotted keys) are columns "param.<key>"
 
@@ -89,14 +90,15 @@ def pinned_settings(row: pd.Series) -> list[str]:
     logged = {key[len(PARAM_PREFIX):]: value for key, value in row.items()
               if key.startswith(PARAM_PREFIX) and isinstance(value, str)}
     compared = {key: value for key, value in logged.items() if key in today}  # today holds no neutral settings
-    changed = [key for key in changed_settings(compared, today)
+    defaults = schema_defaults_today(tuple(items))
+    changed = [key for key in changed_settings(compared, today, defaults)
                if read_by_run(key, logged.get("protocol.name"), row.get("method"))]
     pins: dict[str, str] = {}
     for key in changed:
         parts = key.split(".")
         index = next((i for i, part in enumerate(parts) if part.isdigit()), None)
-        if index is None:
-            pins[key] = _override_value(logged[key])
+        if index is None:  # as logged, or, a key added since the run, its schema default
+            pins[key] = _override_value(logged.get(key, defaults.get(key)))
             continue
         parent = ".".join(parts[:index])  # a list: pin all of it, as logged
         pins[parent] = _list_override(logged, parent)
