@@ -64,9 +64,10 @@ def check_resumable(validated: ValidatedConfig, cfg: DictConfig) -> None:
     ours = flatten(OmegaConf.to_container(cfg, resolve=True))
     job = job_settings(cfg)  # where the runs log and write may differ (another working directory, a moved store)
     theirs = parent.data.params
-    differ = [key for key in changed_settings(theirs, ours, schema_defaults(cfg)) if key in job or key not in ours]
+    defaults = schema_defaults(cfg)  # what the run had for a key it did not log (added since)
+    differ = [key for key in changed_settings(theirs, ours, defaults) if key in job or key not in ours]
     if differ:
-        shown = ", ".join(f"{k}={theirs.get(k)!r} there, {ours.get(k)!r} here" for k in differ[:5])
+        shown = ", ".join(f"{k}={theirs.get(k, defaults.get(k))!r} there, {ours.get(k)!r} here" for k in differ[:5])
         raise ConfigError(f"resume_from: run {validated.resume_from} had another config: {shown}")
 
 

@@ -11,7 +11,7 @@ import re
 import socket
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import MISSING, dataclass, fields, is_dataclass
 from pathlib import Path
 from typing import Any
 
@@ -129,21 +129,19 @@ def schema_defaults(cfg: DictConfig) -> dict[str, str]:
     """Each setting of ``cfg`` as the schema of its node (the dataclass a group's config extends) defaults it,
     flattened as :func:`flatten` flattens ``cfg``; settings of nodes without a schema, or without a default, are left
     out. What a run that did not log a key (added since) ran with: :func:`changed_settings`."""
-    import dataclasses
-
     out: dict[str, str] = {}
 
     def walk(node: DictConfig, prefix: str) -> None:
         schema = OmegaConf.get_type(node)
-        fields = {f.name: f for f in dataclasses.fields(schema)} if dataclasses.is_dataclass(schema) else {}
+        declared = {f.name: f for f in fields(schema)} if is_dataclass(schema) else {}
         for key in node:
             value = node._get_node(key)
             if isinstance(value, DictConfig) and not value._is_none():
                 walk(value, f"{prefix}{key}.")
-            elif key in fields and fields[key].default is not dataclasses.MISSING:
-                out.update(flatten({key: fields[key].default}, prefix))
-            elif key in fields and fields[key].default_factory is not dataclasses.MISSING:
-                out.update(flatten({key: fields[key].default_factory()}, prefix))
+            elif key in declared and declared[key].default is not MISSING:
+                out.update(flatten({key: declared[key].default}, prefix))
+            elif key in declared and declared[key].default_factory is not MISSING:
+                out.update(flatten({key: declared[key].default_factory()}, prefix))
 
     walk(cfg, "")
     return out

@@ -23,7 +23,7 @@ from omegaconf import OmegaConf
 from torch.utils.data import TensorDataset
 
 from hrc_lab.cli import check_resumable, interrupted_message
-from hrc_lab.config import LoggerConfig, validate_config
+from hrc_lab.config import LoggerConfig, TrainerConfig, validate_config
 from hrc_lab.interrupts import RunInterrupted, signals_raise
 from hrc_lab.kernels import cpu_kernels
 from hrc_lab.registry import ConfigError
@@ -275,7 +275,8 @@ def test_resume_from_is_checked_before_work(compose_config, tmp_path):
     other = compose_config(*overrides, f"resume_from={parent.run_id}", "trainer.max_epochs=3")
     with pytest.raises(ConfigError, match=r"resume_from: .*trainer\.max_epochs"):
         check_resumable(validate_config(other), other)
-    # a key added since the parent ran (absent from its params) is not compared; a key it had that is gone is
+    # a key added since the parent ran (absent from its params) is compared as its schema default (what the parent ran
+    # with): a config at that default resumes, one that sets it otherwise does not; a key it had that is gone is
     for retired, resumes in (({}, True), ({"retired_knob": 1}, False)):
         older = OmegaConf.create(OmegaConf.to_container(compose_config(*overrides), resolve=True))  # unstructured
         del older.trainer["max_epochs"]
@@ -286,6 +287,10 @@ def test_resume_from_is_checked_before_work(compose_config, tmp_path):
         today = compose_config(*overrides, f"resume_from={run.run_id}")
         if resumes:
             check_resumable(validate_config(today), today)
+            default = OmegaConf.structured(TrainerConfig).max_epochs
+            away = compose_config(*overrides, f"resume_from={run.run_id}", f"trainer.max_epochs={default + 1}")
+            with pytest.raises(ConfigError, match=rf"trainer\.max_epochs='{default}' there, '{default + 1}' here"):
+                check_resumable(validate_config(away), away)
         else:
             with pytest.raises(ConfigError, match=r"trainer\.retired_knob='1' there, None here"):
                 check_resumable(validate_config(today), today)
