@@ -26,7 +26,7 @@ from mlflow.tracking import MlflowClient
 
 from hrc_lab.config import ConfigError, default_tracking_uri, validate_config
 from hrc_lab.processes import process_start
-from hrc_lab.tracking import changed_settings, compose_today, composed_today, resolve_tracking_uri
+from hrc_lab.tracking import changed_settings, compose_today, resolve_tracking_uri, schema_defaults_today
 
 
 def runs_where(client: MlflowClient, query: str) -> list:
@@ -104,18 +104,13 @@ def job_of(run) -> dict[str, str]:
 
 
 def same_job(ended, others: list, overrides: list[str]) -> list:
-    """The runs of ``others`` that do ``ended``'s job: no setting either logged differs, a key only one of them
-    logged (added since the older one ran) aside, and each key ``ended`` did not log holds the value its job
-    (``overrides``, its task overrides) composes to today: the default that keeps what ``ended`` ran. So a run that
-    sets a key added since ``ended`` ran away from its default does another job. Where the runs log and write (the
-    neutral groups) is not the job."""
-    alike = [other for other in others if not changed_settings(job_of(ended), job_of(other))]
-    today = composed_today(tuple(overrides)) if alike else None
-    if today is None:  # none alike, or a job that no longer composes (which cannot resume either)
-        return alike
-    added = {key: value for key, value in today.items() if key not in job_of(ended)}
-    return [other for other in alike if not changed_settings({k: v for k, v in job_of(other).items() if k in added},
-                                                             added)]
+    """The runs of ``others`` that do ``ended``'s job: no setting either logged differs, and each key ``ended`` did
+    not log (added since it ran) holds, in the other run, the schema default ``ended`` ran with
+    (:func:`~hrc_lab.tracking.changed_settings`, the defaults of its job's ``overrides``, its task overrides). So a
+    run that sets a key added since ``ended`` ran away from its default does another job. Where the runs log and
+    write (the neutral groups) is not the job."""
+    defaults = schema_defaults_today(tuple(overrides)) if others else {}
+    return [other for other in others if not changed_settings(job_of(ended), job_of(other), defaults)]
 
 
 def resumable(tracking_uri: str) -> list[tuple[str, str]]:
