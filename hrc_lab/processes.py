@@ -1,13 +1,15 @@
 """Which process is which: a live process' identity that outlives PID reuse (used by the runs' ``process_start``
 tag, ``hrc-lab-runs stale`` and ``hrc-lab-server stop``), which machine it runs on (the runs' ``cpu`` tags,
-``hrc-lab-reproduce``'s summary), and the one way hrc_lab signals and stops a process group (``hrc-lab-server``'s
+``hrc-lab-reproduce``'s summary), which code it runs (the runs' ``commit`` tag, the reports' headers), and the one way hrc_lab signals and stops a process group (``hrc-lab-server``'s
 MLflow server, ``hrc-lab-reproduce``'s steps)."""
 
 from __future__ import annotations
 
+import functools
 import os
 import platform
 import signal
+import subprocess
 import time
 from pathlib import Path
 
@@ -93,3 +95,26 @@ def machine_identity() -> dict[str, str]:
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return {"cpu": name, "cpu_cores": str(cores), "cpu_capability": torch.backends.cpu.get_cpu_capability(),
             "cpu_kernels": cpu_kernels()}
+
+
+REPOSITORY = Path(__file__).resolve().parents[1]  # the checkout hrc_lab is imported from (an editable install's)
+
+
+@functools.cache
+def code_identity() -> dict[str, str]:
+    """Tags that say which code a job ran: ``commit``, the git commit of the checkout hrc_lab is imported from, and
+    ``commit_dirty``, "true" when a tracked file differed from it when the process started ("unknown" for both
+    outside a git checkout). A report names the commits its runs ran at, so a run of edited code never passes for
+    the commit's."""
+    def git(*args: str) -> str | None:
+        try:
+            done = subprocess.run(["git", "-C", str(REPOSITORY), *args], capture_output=True, text=True, timeout=20)
+        except (OSError, subprocess.TimeoutExpired):
+            return None
+        return done.stdout.strip() if done.returncode == 0 else None
+
+    commit = git("rev-parse", "HEAD")
+    if commit is None:
+        return {"commit": "unknown", "commit_dirty": "unknown"}
+    status = git("status", "--porcelain", "--untracked-files=no")
+    return {"commit": commit, "commit_dirty": "unknown" if status is None else str(bool(status)).lower()}

@@ -33,7 +33,7 @@ from pathlib import Path
 import pandas as pd
 
 from hrc_lab.config import runs_dir
-from hrc_lab.processes import machine_identity, signal_group
+from hrc_lab.processes import code_identity, machine_identity, signal_group
 from hrc_lab.report.build import COMMANDS
 from hrc_lab.report.sections import TOPICS
 
@@ -179,7 +179,7 @@ def record(path: Path, command: str, tracking_uri: str | None, seconds: float, m
     path.parent.mkdir(parents=True, exist_ok=True)
     entry = {"command": command, "tracking_uri": tracking_uri or "", "seconds": round(seconds, 1),
              "finished": datetime.now(UTC).isoformat(timespec="seconds"),
-             "cpu": machine["cpu"], "cpu_cores": machine["cpu_cores"]}
+             "cpu": machine["cpu"], "cpu_cores": machine["cpu_cores"], **code_identity()}
     with path.open("a") as file:
         file.write(json.dumps(entry) + "\n")
 

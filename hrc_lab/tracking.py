@@ -25,7 +25,7 @@ from omegaconf import DictConfig, OmegaConf, open_dict
 
 from hrc_lab.config import ConfigError, LoggerConfig, register_schemas, validate_config
 from hrc_lab.interrupts import RunInterrupted
-from hrc_lab.processes import machine_identity, process_start
+from hrc_lab.processes import code_identity, machine_identity, process_start
 from hrc_lab.run_naming import CONF_DIR, NEUTRAL_KEYS
 
 # A job logging to a tracking server gives up on it within ~30 s (MLflow's defaults retry for minutes: 7 retries,
@@ -238,7 +238,8 @@ def process_identity(pid: int | None = None) -> dict[str, str]:
 
 
 class RunTracker:
-    """One MLflow run, tagged with :func:`process_identity` and :func:`machine_identity`; use as a context manager:
+    """One MLflow run, tagged with :func:`process_identity`, :func:`machine_identity` and
+    :func:`~hrc_lab.processes.code_identity`; use as a context manager:
     leaving it normally marks the run FINISHED, an exception FAILED, SIGTERM/SIGINT (:class:`RunInterrupted`)
     KILLED with the signal in the ``signal`` tag. ``parent_run_id`` names the killed run this one resumes (tag
     ``resumed_from``); its checkpoints are read by :meth:`resume_checkpoint`."""
@@ -249,7 +250,7 @@ class RunTracker:
         self.client = tracking_client(self.tracking_uri)
         self.experiment_id = ensure_experiment(self.client, experiment, cfg.artifact_root)
         self.run_name = run_name
-        self.tags = {**tags, **process_identity(), **machine_identity()}
+        self.tags = {**tags, **process_identity(), **machine_identity(), **code_identity()}
         if parent_run_id:
             self.tags["resumed_from"] = parent_run_id
         self.parent_run_id = parent_run_id
