@@ -1,14 +1,13 @@
-"""``hrc-lab-reproduce all`` (or ``ch3``, ``ch4``, ``ch5``, ``ch6``, ``data``, or one report topic such as
-``ch5_perception``): run every sweep of the chosen chapters, then build every report, and print each step's wall time.
+"""``hrc-lab-reproduce all`` (or ``ch3``, ``ch4``, ``ch5``, ``ch6``, ``data``, or one report such as
+``ch5_perception``): run every study of the chosen chapters' plans, then build their reports, and print each step's
+wall time.
 
-The plan is derived in one place from the reports' topics (``hrc_lab.report.sections.TOPICS``: which experiments each
-report reads) and their reproduce commands (``hrc_lab.report.build.COMMANDS``, the line each report prints), plus
-the steps no report table reads (the rendered demonstration videos). Each step is a subprocess of the installed
-console scripts beside ``sys.executable``; the run stops at the first failing step, naming it. Reports are built with
-``hrc-lab-report --update``: the plan re-runs each experiment as configured, so the sections it rebuilds are the
-default ones, and a committed ablation section (whose runs a fresh store does not hold) stays as it was instead of
-being dropped. Finished sweeps are journaled (``<runs>/reproduce.jsonl``); ``--resume`` skips those of the same
-command, store and machine and counts their recorded wall times in the total.
+The plan is :mod:`hrc_lab.report.plans`: each report's studies, each one sweep (the Reproduce line its section
+prints), plus the steps a report links but no table reads (the rendered demonstration videos). Each step is a
+subprocess of the installed console scripts beside ``sys.executable``; the run stops at the first failing step,
+naming it. A report is rebuilt whole from its plan's runs in the store (``hrc-lab-report <topic>``): nothing is kept
+from an earlier report. Finished sweeps are journaled (``<runs>/reproduce.jsonl``); ``--resume`` skips those of the
+same command, store and machine and counts their recorded wall times in the total.
 
 ``--check`` builds the fresh reports into a temporary folder instead of ``reports/`` and compares their CSV tables
 with the committed ones: a ``<x>_mean`` / ``mean`` cell differs when |fresh − committed| exceeds the larger of the
@@ -34,35 +33,16 @@ import pandas as pd
 
 from hrc_lab.config import runs_dir
 from hrc_lab.processes import code_identity, machine_identity, signal_group
-from hrc_lab.report.build import COMMANDS
-from hrc_lab.report.sections import TOPICS
+from hrc_lab.report.plans import PLANS
 
 CHAPTERS = ("ch3", "ch4", "ch5", "ch6", "data")
-JOBLIB = "hydra/launcher=joblib"
 
-# Steps no report table reads, run after the topic's own sweeps (hrc-lab arguments).
-EXTRA_SWEEPS: dict[str, list[tuple[str, ...]]] = {
-    "ch4_reasoning": [  # Fig. 4.7's variants of ours, a sweep of their own whose runs land in ch4/fig_4_7
-        ("experiment=ch4/fig_4_7_variants", JOBLIB),
-    ],
-    "data_demonstrations": [  # one rendered demonstration per cell, copied to reports/videos/ (the report links them)
-        ("experiment=data/render_demo", "env=package_to_order_4of5"),
-        ("experiment=data/render_demo", "env=package_to_order_3of5", "env.sim.case=2"),
-        ("experiment=data/render_demo", "env=error_correction_one_object_case1"),
-        ("experiment=data/render_demo", "env=error_correction_two_object_case2"),
-    ],
-}
-
-# Experiment files under conf/experiment that are no thesis table or figure, with the reason they are not run.
+# Experiment files under conf/experiment that are no study of a plan, with the reason they are not run.
 LEFT_OUT = {
     "ch4/table_4_1_quick": "a few-minute preview of ch4/table_4_1 (README command 1); its runs are kept apart",
     "data/collect": "one demonstration set chosen on the command line; collect_ch3 / collect_ch4 run every set",
     "ch5/annotate": "annotates a video given on the command line; reuses the detector cached by ch5/table_5_2",
 }
-
-# An ablation section's table: "<table>_v<8 hex digits>.csv" (hrc_lab.report.build names it by its variant). The plan
-# runs the experiment files as configured; each ablation section prints the command that re-runs exactly its runs.
-ABLATION_TABLE = re.compile(r"_v[0-9a-f]{8}\.csv$")
 
 # Sweeps that copy a file into reports/ themselves; with --check the copy goes to the fresh reports' folder instead
 # (the report links it relative to itself), so a check never rewrites committed files.
@@ -84,21 +64,24 @@ def chapter_of(topic: str) -> str:
     return topic.split("_", 1)[0]
 
 
-def _sweep(topic: str, args: tuple[str, ...]) -> Step:
-    shown = " ".join(arg.removeprefix("experiment=") for arg in args if not arg.startswith("hydra/launcher="))
-    return Step(f"sweep {shown}", "sweep", topic, ("hrc-lab", *args))
+def _sweep(topic: str, args: tuple[str, ...], name: str) -> Step:
+    return Step(f"sweep {name}", "sweep", topic, ("hrc-lab", *args))
 
 
 def build_plan() -> list[Step]:
-    """Every sweep of every topic (chapter order, then TOPICS order), then every report."""
-    topics = sorted(TOPICS, key=lambda topic: CHAPTERS.index(chapter_of(topic)))
+    """Every study of every plan (chapter order, then the plan's order), then every report."""
+    topics = sorted(PLANS, key=lambda topic: CHAPTERS.index(chapter_of(topic)))
     sweeps, reports = [], []
     for topic in topics:
-        for experiment, table in TOPICS[topic][2]:
-            command = shlex.split(COMMANDS.get(table, f"hrc-lab experiment={experiment} {JOBLIB}"))
-            sweeps.append(_sweep(topic, tuple(command[1:])))
-        sweeps += [_sweep(topic, args) for args in EXTRA_SWEEPS.get(topic, [])]
-        reports.append(Step(f"report {topic}", "report", topic, ("hrc-lab-report", topic, "--update")))
+        plan = PLANS[topic]
+        for study in plan.studies:
+            for argv in study.sweeps:
+                shown = " ".join(arg.removeprefix("experiment=") for arg in argv if arg != study.launcher)
+                sweeps.append(_sweep(topic, argv, f"{shown} [{study.key}]" if study.overrides else shown))
+        for args in plan.extra:
+            shown = " ".join(arg.removeprefix("experiment=") for arg in args)
+            sweeps.append(_sweep(topic, args, shown))
+        reports.append(Step(f"report {topic}", "report", topic, ("hrc-lab-report", topic)))
     return sweeps + reports
 
 
@@ -375,9 +358,7 @@ def compare_reports(committed: Path, fresh: Path, topics: list[str]) -> tuple[li
         names = sorted({p.name for p in old_dir.glob("*.csv")} | {p.name for p in new_dir.glob("*.csv")})
         for name in names:
             label = f"{topic}/{name}"
-            if not (new_dir / name).exists() and ABLATION_TABLE.search(name):
-                notes.append(f"{label}: an ablation, which the plan does not re-run; its section names its command")
-            elif not (new_dir / name).exists():
+            if not (new_dir / name).exists():
                 differences.append(f"{label}: committed, but the fresh report has no such table")
             elif not (old_dir / name).exists():
                 differences.append(f"{label}: in the fresh report, not committed")
@@ -398,7 +379,7 @@ def check(committed: Path, fresh: Path, topics: list[str]) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    choices = ["all", *CHAPTERS, *sorted(TOPICS)]
+    choices = ["all", *CHAPTERS, *sorted(PLANS)]
     parser = argparse.ArgumentParser(
         prog="hrc-lab-reproduce", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )

@@ -184,3 +184,33 @@ def console_script():
     """console_script(name) -> path of an installed console script (hrc-lab, hrc-lab-report) beside the running
     interpreter, so the tests work without an activated venv."""
     return lambda name: str(Path(sys.executable).with_name(name))
+
+
+@pytest.fixture
+def job_report(tmp_path):
+    """job_report(job, topic, **plan_changes) -> str: :func:`report_of` into ``tmp_path / "report"``."""
+    return lambda job, topic, **changes: report_of(job, topic, tmp_path / "report", **changes)
+
+
+def report_of(job: Job, topic: str, out: Path, **plan_changes) -> str:
+    """The markdown of report ``topic`` built from the store of ``job`` with the plan's study of the job's
+    experiment replaced by one whose overrides are the job's (a test's tiny settings make its run an ablation of
+    the experiment as configured): the report as the plan would print it for such runs."""
+    import dataclasses
+
+    from hrc_lab.report.build import build_report
+    from hrc_lab.report.plan import Study
+    from hrc_lab.report.plans import PLANS
+
+    plan = PLANS[topic]
+    tags = job.run.data.tags
+    overrides = tuple(tags.get("variant_overrides", "").split())
+    studies = []
+    for study in plan.studies:
+        if study.mlflow_experiment == tags["experiment"] and study.default:
+            study = Study(study.experiment, overrides, key=study.key, title=f"{study.table} (this test's settings)")
+        elif study.mlflow_experiment == tags["experiment"]:
+            continue
+        studies.append(study)
+    plan = dataclasses.replace(plan, studies=tuple(studies), **plan_changes)
+    return build_report(plan, job.tracking_uri, out).read_text()

@@ -131,14 +131,16 @@ TOOLS = {"data/collect", "data/render_demo", "ch5/annotate"}
 
 
 @pytest.mark.parametrize("experiment", [e for e in EXPERIMENTS if not e.endswith("_quick") and e not in TOOLS])
-def test_every_experiment_has_a_report_section_and_topic(compose_config, experiment):
-    from hrc_lab.report.build import COMMANDS
-    from hrc_lab.report.sections import SECTIONS, TOPICS, load_sections
+def test_every_experiment_has_a_report_section_and_a_study(compose_config, experiment):
+    from hrc_lab.report.plans import PLANS
+    from hrc_lab.report.sections import SECTIONS, load_sections
 
     cfg = compose_config(f"experiment={experiment}")
     load_sections()
-    assert cfg.table in SECTIONS and cfg.table in COMMANDS
-    assert (cfg.name, cfg.table) in {part for *_, parts in TOPICS.values() for part in parts}
+    assert cfg.table in SECTIONS
+    studies = [study for plan in PLANS.values() for study in plan.studies
+               if experiment == study.experiment or experiment in study.also]
+    assert studies and all(study.table == cfg.table and study.mlflow_experiment == cfg.name for study in studies)
 
 
 @pytest.mark.parametrize("override,key", [

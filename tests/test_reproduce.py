@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from hrc_lab import reproduce
-from hrc_lab.report.sections import TOPICS
+from hrc_lab.report.plans import PLANS
 from hrc_lab.reproduce import LEFT_OUT, PLAN, Step, compare_reports, main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -30,7 +30,7 @@ def test_plan_covers_every_table_and_figure_experiment():
     planned = {arg.removeprefix("experiment=") for step in PLAN for arg in step.argv if arg.startswith("experiment=")}
     assert planned.isdisjoint(LEFT_OUT)
     assert experiments == planned | set(LEFT_OUT), "every experiment file is planned or left out with a reason"
-    assert {step.topic for step in PLAN if step.kind == "report"} == set(TOPICS)
+    assert {step.topic for step in PLAN if step.kind == "report"} == set(PLANS)
     kinds = [step.kind for step in PLAN]
     assert kinds == sorted(kinds, key=["sweep", "report"].index), "every sweep runs before any report"
 
@@ -41,7 +41,7 @@ def test_dry_run_prints_every_step(capsys):
     for step in PLAN:
         assert step.name in out
     assert out.count("logger.tracking_uri=http://127.0.0.1:5001") == sum(step.kind == "sweep" for step in PLAN)
-    assert out.count("--tracking-uri http://127.0.0.1:5001") == len(TOPICS)
+    assert out.count("--tracking-uri http://127.0.0.1:5001") == len(PLANS)
     assert main(["ch6", "--dry-run"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert [line.split(": ", 1)[0] for line in lines] == [
@@ -148,21 +148,32 @@ def test_check_run_exits_non_zero_when_a_fresh_report_differs(monkeypatch, tmp_p
 def test_every_chapter_has_steps(selection):
     steps = reproduce.select(PLAN, [selection])
     assert steps and steps[-1].kind == "report"
-    # the committed reports' ablation sections (runs of other stores) survive a reproduction
-    assert all(step.argv[-1] == "--update" for step in steps if step.kind == "report")
+    # a report is rebuilt whole from its plan's runs: nothing is kept from an earlier report
+    assert all(step.argv == ("hrc-lab-report", step.topic) for step in steps if step.kind == "report")
     assert all(Path(sys.executable).parent.joinpath(step.argv[0]).name.startswith("hrc-lab") for step in steps)
 
 
-def test_check_notes_committed_ablations_the_plan_does_not_rerun(tmp_path):
+def test_check_lists_a_committed_table_the_fresh_report_lacks(tmp_path):
+    """Every section is a study of the plan, so a committed table the fresh report does not have differs (an
+    ablation is re-run like any other study)."""
     committed, fresh = tmp_path / "committed", tmp_path / "fresh"
     _write(committed, "ch3_motion", _table(0.8, 0.5))
     _write(fresh, "ch3_motion", _table(0.8, 0.5))
-    _table(0.1, 0.1).to_csv(committed / "ch3_motion" / "table_3_1_v005bbb65.csv", index=False)
     _table(0.1, 0.1).to_csv(committed / "ch3_motion" / "table_3_1_extra.csv", index=False)
     differences, notes = compare_reports(committed, fresh, ["ch3_motion"])
     assert differences == ["ch3_motion/table_3_1_extra.csv: committed, but the fresh report has no such table"]
-    assert notes == ["ch3_motion/table_3_1_v005bbb65.csv: an ablation, which the plan does not re-run; its section "
-                     "names its command"]
+    assert notes == []
+
+
+def test_every_study_of_every_plan_is_a_step_and_its_reproduce_line_is_that_step(capsys):
+    """``--dry-run`` lists every section any report shows: each study's sweeps, with the command its section
+    prints."""
+    assert main(["all", "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    for plan in PLANS.values():
+        for study in plan.studies:
+            for command in study.command.split(" && "):
+                assert f": {command}\n" in out, command
 
 
 def test_resume_skips_the_sweeps_an_earlier_reproduction_finished_and_counts_their_time(monkeypatch, capsys,

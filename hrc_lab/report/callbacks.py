@@ -34,34 +34,38 @@ class SweepSummary(Callback):
         try:
             self._summarise(config)
         except Exception:
-            from hrc_lab.report.sections import TOPICS
+            from hrc_lab.report.plans import PLANS
 
             traceback.print_exc()
-            topic = next((name for name, (_, _, parts) in TOPICS.items() if (config.name, config.table) in parts),
-                         "<topic>")
-            print(f"hrc-lab: the sweep's jobs ended but its summary failed (traceback above); its report: "
-                  f"`hrc-lab-report {topic} --sweep {Path(config.hydra.sweep.dir).name}`", file=sys.stderr)
+            topic = next((plan.topic for plan in PLANS.values()
+                          if any(study.mlflow_experiment == config.name for study in plan.studies)), "<topic>")
+            print(f"hrc-lab: the sweep's jobs ended but its summary failed (traceback above); its runs are in MLflow "
+                  f"(sweep {Path(config.hydra.sweep.dir).name}); its report: `hrc-lab-report {topic}`",
+                  file=sys.stderr)
             sys.exit(1)
 
     @staticmethod
     def _summarise(config: DictConfig) -> None:
-        from hrc_lab.report.build import COMMANDS, build_sections, write_section
+        from hrc_lab.report.build import sections_from, write_section
+        from hrc_lab.report.plans import PLANS
+        from hrc_lab.report.runs import fetch_runs
         from hrc_lab.tracking import LoggerConfig, RunTracker
 
         sweep_dir = Path(config.hydra.sweep.dir)
         uri = config.logger.tracking_uri
         # This sweep's runs only, of whatever variant they carry (a sweep with extra overrides is an ablation; one
         # that sweeps an extra key holds several variants, each summarised apart).
-        sections = build_sections(uri, config.name, config.table, sweep=sweep_dir.name, variant=None)
+        sections = sections_from(fetch_runs(uri, config.name, sweep_dir.name, variant=None), str(config.table))
         if not sections:
             print(f"hrc-lab: no finished runs in sweep {sweep_dir}", file=sys.stderr)
             return
+        studies = {(study.mlflow_experiment, study.variant): study for plan in PLANS.values() for study in plan.studies}
         parts = []
-        for variant, overrides, section in sections:
+        for variant, _, section in sections:
             stem = config.table if variant == "default" else f"{config.table}_{variant}"
-            command = COMMANDS.get(str(config.table), f"hrc-lab experiment={config.name}")
-            rerun = f"{command} {overrides}" if variant != "default" and overrides else command
-            parts.append(write_section(section, sweep_dir / "summary", uri, stem, rerun))
+            study = studies.get((str(config.name), variant))
+            command = study.command if study else " ".join(["hrc-lab", *sys.argv[1:]])
+            parts.append(write_section(section, sweep_dir / "summary", uri, stem, command))
         markdown = "\n".join(parts)
         (sweep_dir / "summary.md").write_text(markdown)
         logger = LoggerConfig(tracking_uri=uri, artifact_root=config.logger.artifact_root)

@@ -12,6 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from hrc_lab.report.plan import Plan, Study  # noqa: E402
 from hrc_lab.report.runs import (  # noqa: E402
     NOT_LOGGED,
     amount,
@@ -218,3 +219,13 @@ def _oracle_reading(runs: pd.DataFrame) -> str:
             "default runs start it from wherever the first placement ended (their section's `stage2_moved_error_m`). "
             f"Measured here: {'; '.join(parts)}. A second object that succeeds here and fails in the default rows "
             "fails because the first placement's error is outside what c(x) and the planner were trained on.")
+
+
+# The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
+PLAN = Plan(
+    topic="ch3_motion",
+    title="Ch.3 two-level LfD motion planner: error correction (Table 3.1) and the NDP (Fig. 3.10)",
+    note="Trials run in our robosuite UR5e error-correction cells, not the thesis' CoppeliaSim UR10; "
+         "demonstrations come from a scripted expert, segmented into stages by PELT change points.",
+    studies=(Study("ch3/table_3_1"), Study("ch3/fig_3_10")),
+)

@@ -13,6 +13,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
+from hrc_lab.report.plan import Plan, Study  # noqa: E402
 from hrc_lab.report.runs import (  # noqa: E402
     PARAM_PREFIX,
     amount,
@@ -386,3 +387,13 @@ def fetch(runs: pd.DataFrame) -> Section:
     ]
     return Section("A public anchor: the same agent and loop on gymnasium-robotics' Fetch tasks", "\n".join(text),
                    pd.DataFrame(csv), {"fetch.png": fig})
+
+
+# The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
+PLAN = Plan(
+    topic="ch3_rl",
+    title="Ch.3 hybrid hierarchical guided RL (Algorithm 1): DDPG + HER guided by the two-level planner",
+    note="Training runs in our robosuite UR5e error-correction cells as a gymnasium goal env, not the "
+         "thesis' CoppeliaSim UR10; the agent is stable-baselines3's DDPG with its HER replay buffer.",
+    studies=(Study("ch3/fig_3_13"), Study("ch3/fig_3_12"), Study("ch3/fig_3_9"), Study("rl/fetch")),
+)

@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 
 from hrc_lab.report.ch4_conditions import conditions_paragraph
+from hrc_lab.report.plan import Plan, Study
 from hrc_lab.report.plots import success_bars
 from hrc_lab.report.runs import NOT_LOGGED, amount, keyed, mean_std, over_seeds, setting
 from hrc_lab.report.sections import Section, register_section
@@ -113,3 +114,13 @@ def table_4_2(runs: pd.DataFrame) -> Section:
                                        "(Sec. 4.2.2), so both ranges are its test conditions.")
     return Section("Table 4.2: sub-goal regressors and the motion module", "\n".join(text), pd.DataFrame(csv),
                    {"table_4_2.png": success_bars(pd.DataFrame(csv), cells, methods, LABELS, "Table 4.2")})
+
+
+# The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
+PLAN = Plan(
+    topic="ch4_motion",
+    title="Ch.4 motion module: task-conditioned sub-goal planner and NDP vs. VI, GPR, MLP",
+    note="Closed-loop trials run in our robosuite UR5e cell, not the thesis' CoppeliaSim UR10; demonstrations "
+         "come from the scripted expert.",
+    studies=(Study("ch4/table_4_2"),),
+)

@@ -11,6 +11,8 @@ import pandas as pd  # noqa: E402
 
 from hrc_lab.reasoning.configs import CH4, DEFAULT_POSITION_FRAME, POSITION_FRAMES, REASONERS  # noqa: E402
 from hrc_lab.report.ch4_conditions import conditions_paragraph  # noqa: E402
+from hrc_lab.report.headline import from_stats, results_frame  # noqa: E402
+from hrc_lab.report.plan import Plan, Study  # noqa: E402
 from hrc_lab.report.plots import success_bars  # noqa: E402
 from hrc_lab.report.runs import (  # noqa: E402
     NOT_LOGGED,
@@ -103,6 +105,7 @@ def table_4_1(runs: pd.DataFrame) -> Section:
         pd.DataFrame(csv),
         {"table_4_1.png": success_bars(pd.DataFrame(csv), cells, methods, LABELS, "Table 4.1",
                                        thesis_col="thesis_mean")},
+        results=results_frame(from_stats(stats)),
     )
 
 
@@ -453,3 +456,14 @@ def fig_4_9(runs: pd.DataFrame) -> Section:
     csv = frame[["case", "stage", "feature", "mean", "std"]].rename(columns={"mean": "importance_mean",
                                                                          "std": "importance_std"})
     return Section("Fig. 4.9: GNNExplainer masks", "\n".join(text), csv, {}, artifacts)
+
+
+# The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
+PLAN = Plan(
+    topic="ch4_reasoning",
+    title="Ch.4 reasoning module (GraphSAGE importance ranking) vs. baselines",
+    note="Our scenes come from the simulator-independent package-to-order spec (`hrc_lab/env/robot/spec.py`), "
+         "not the thesis' CoppeliaSim scenes.",
+    studies=(Study("ch4/table_4_1"), Study("ch4/fig_4_7", also=("ch4/fig_4_7_variants",)),
+             Study("ch4/practical"), Study("ch4/fig_4_9")),
+)

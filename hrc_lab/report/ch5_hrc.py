@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pandas as pd
 
+from hrc_lab.report.plan import Plan, Study
 from hrc_lab.report.runs import amount, over_seeds, run_tables, setting, spread
 from hrc_lab.report.sections import Section, register_section
 from hrc_lab.report.thesis import fmt, markdown_table, thesis_cells, thesis_fmt, thesis_results
@@ -145,3 +146,13 @@ def hrc_session(runs: pd.DataFrame) -> Section:
     artifacts = {"hrc_session.mp4": (shown.run_id, "videos/session_side_by_side.mp4")}
     return Section("The HRC loop with the robot: Table 5.2 extended", "\n".join(text),
                    pd.DataFrame(records + fast_records), {}, artifacts)
+
+
+# The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
+PLAN = Plan(
+    topic="ch5_hrc",
+    title="Ch.5 human-robot collaboration with the robot in the loop (Algorithm 3's PickandPlace)",
+    note="The worker is a generated video, not a person on a RealSense camera; the robot is a simulated UR5e "
+         "with a suction cup in robosuite, not the thesis' UR10 at a real bench.",
+    studies=(Study("ch5/hrc_session"),),
+)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import pandas as pd
 from matplotlib.figure import Figure
 
+from hrc_lab.report.plan import Plan, Study
 from hrc_lab.report.runs import amount, over_seeds, setting, setting_number, spread
 from hrc_lab.report.sections import Section, register_section
 from hrc_lab.report.thesis import fmt, markdown_table, thesis_cells, thesis_fmt, thesis_results
@@ -136,3 +137,13 @@ def table_5_2(runs: pd.DataFrame) -> Section:
                  "session_annotated.mp4": (first.run_id, "videos/session_annotated.mp4")}
     return Section("Table 5.2 end to end: video -> actions -> plans", "\n".join(text), pd.DataFrame(records), {},
                    artifacts)
+
+
+# The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
+PLAN = Plan(
+    topic="ch5_perception",
+    title="Ch.5 hand-centric action detector and the video-to-plan pipeline",
+    note="Videos are generated: a top-down view of our assembly cell with an OpenCV-drawn hand that MediaPipe "
+         "tracks, not RealSense recordings of a worker; every network trains from scratch on the CPU.",
+    studies=(Study("ch5/fig_5_6"), Study("ch5/table_5_2")),
+)

@@ -8,6 +8,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from hrc_lab.report.plan import Plan, Study  # noqa: E402
 from hrc_lab.report.runs import amount, mean_std, over_seeds  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, markdown_table, thesis_cells, thesis_fmt, thesis_results  # noqa: E402
@@ -112,3 +113,13 @@ def table_5_2_planner(runs: pd.DataFrame) -> Section:
         pd.DataFrame(rows).to_markdown(index=False),
     ]
     return Section("Table 5.2 (planner columns): Semantic Guidance and Control", "\n".join(text), pd.DataFrame(records))
+
+
+# The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
+PLAN = Plan(
+    topic="ch5_planner",
+    title="Ch.5 graph semantic planner: goal inference, next object and text plans",
+    note="Our scenarios come from the assemble-to-order domain (`hrc_lab/env/assembly/spec.py`) with our own "
+         "three goal configurations (the thesis' Fig. 5.4 is not legible in its text).",
+    studies=(Study("ch5/fig_5_7"), Study("ch5/table_5_2_planner")),
+)

@@ -17,6 +17,7 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from hrc_lab.grasp.diagnostics import FAILURE_CAUSES  # noqa: E402
 from hrc_lab.report.defaults import PARAM_PREFIX  # noqa: E402
+from hrc_lab.report.plan import Plan, Study  # noqa: E402
 from hrc_lab.report.runs import (  # noqa: E402
     DEFAULT_VARIANT,
     amount,
@@ -533,3 +534,14 @@ def _answer_lengths(runs: pd.DataFrame) -> list[str]:
                 "needs the fewest requests): where one request is enough, the case scores the solver's first "
                 "graspability check, whatever the part count.", "",
             lengths.round(3).reset_index().to_markdown(index=False)]
+
+
+# The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
+PLAN = Plan(
+    topic="ch6_grasp",
+    title="Ch.6 iterative visual grasping: graspability and grasp solutions from detector features",
+    note="Scenes are rendered in MuJoCo (parts a, b, c dropped with physics), labelled by one geometric rule, "
+         "not photos labelled by an expert; the detector is a small Faster R-CNN trained from scratch.",
+    studies=(Study("ch6/table_6_1"), Study("ch6/table_6_2_single"), Study("ch6/table_6_3"),
+             Study("ch6/fig_6_9")),
+)

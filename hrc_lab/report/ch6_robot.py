@@ -8,6 +8,7 @@ import pandas as pd
 
 from hrc_lab.grasp.diagnostics import ROBOT_FAILURES
 from hrc_lab.report.ch6_grasp import METHODS
+from hrc_lab.report.plan import Plan, Study
 from hrc_lab.report.runs import NOT_LOGGED, amount, over_seeds, setting, spread
 from hrc_lab.report.sections import Section, register_section
 from hrc_lab.report.thesis import fmt, markdown_table, thesis_results, thesis_value
@@ -111,3 +112,13 @@ def table_6_2_robot(runs: pd.DataFrame) -> Section:
                      for name in ("robot_episode.mp4", "robot_episode_strip.jpg")}
     return Section("Table 6.2 (robot row): Algorithm 4 with the robot", "\n".join(text), pd.DataFrame(records), {},
                    artifacts)
+
+
+# The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
+PLAN = Plan(
+    topic="ch6_robot",
+    title="Ch.6 iterative grasping with the robot (Algorithm 4 in a robosuite clutter cell)",
+    note="Table 6.2's rendered scenes in a robosuite cell with a simulated UR5e and a Robotiq 2F-140, not the "
+         "thesis' UR10 with a 2F-85 at real parts; the camera is the scenes' own, rendered with depth.",
+    studies=(Study("ch6/table_6_2_robot"),),
+)

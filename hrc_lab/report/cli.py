@@ -1,8 +1,9 @@
-"""``hrc-lab-report <topic>``: write ``reports/<topic>.md`` and its plots from the MLflow runs of its tables.
+"""``hrc-lab-report <topic>``: write ``reports/<topic>.md``, its tables and plots from the runs of its plan
+(:mod:`hrc_lab.report.plans`) in one MLflow store, and the scoreboard ``reports/README.md``.
 
-Each table reads its default runs (no override beyond the experiment's own sweep keys); every ablation variant
-present (runs with other overrides, e.g. ``protocol.demos=60``) follows in its own section. ``--update`` keeps the
-sections of the existing report whose runs the store does not hold."""
+The report opens with the thesis' tables beside ours, then one section per study of the plan, each built from the
+finished runs of that study's variant only; a study without runs says so and names its command. Nothing is kept
+from an earlier report."""
 
 from __future__ import annotations
 
@@ -11,32 +12,19 @@ from pathlib import Path
 
 from hrc_lab.config import default_tracking_uri
 from hrc_lab.report.build import build_topic
-from hrc_lab.report.sections import TOPICS
+from hrc_lab.report.plans import PLANS
 
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="hrc-lab-report", description=__doc__)
-    parser.add_argument("topic", choices=sorted(TOPICS), help="which report to build")
+    parser.add_argument("topic", choices=sorted(PLANS), help="which report to build")
     parser.add_argument("--tracking-uri", default=default_tracking_uri(),
                         help="MLflow tracking URI (default: the store under $HRC_LAB_RUNS, else runs/)")
     parser.add_argument("--out", type=Path, default=Path("reports"), help="folder for the markdown and PNGs")
-    parser.add_argument(
-        "--sweep",
-        default=None,
-        metavar="ID",
-        help="read only the runs of this sweep (its folder name, e.g. 2026-11-23_19-31-20; MLflow tag `sweep`) "
-        "in every section; default: the newest finished run of every job across sweeps",
-    )
-    parser.add_argument(
-        "--update",
-        action="store_true",
-        help="keep each section of the existing <out>/<topic>.md whose runs this store (or sweep) does not hold, "
-        "as it is, and rebuild the others (e.g. one figure re-run on a machine whose store lacks the rest)",
-    )
     args = parser.parse_args(argv)
-    path = build_topic(args.topic, args.tracking_uri, args.out, sweep=args.sweep, update=args.update)
+    path = build_topic(args.topic, args.tracking_uri, args.out)
     print(path.read_text())
-    print(f"\nwrote {path}")
+    print(f"\nwrote {path} and {args.out / 'README.md'}")
 
 
 if __name__ == "__main__":

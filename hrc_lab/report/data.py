@@ -9,6 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from hrc_lab.report.plan import Plan, Study  # noqa: E402
 from hrc_lab.report.runs import amount, keyed  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt  # noqa: E402
@@ -75,3 +76,20 @@ def collect_ch3(runs: pd.DataFrame) -> Section:
     return _section(runs, "Error-correction demonstrations (Ch.3)",
                     "{episodes} per error-correction scenario (Table 3.1 cases, Fig. 3.4 tasks); "
                     "the thesis recorded 20 demonstrations per case by keyboard teleoperation.")
+
+
+# The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
+PLAN = Plan(
+    topic="data_demonstrations",
+    title="Robot cells and scripted-expert demonstrations (Ch.3, Ch.4)",
+    note="robosuite 1.5.1 UR5e with our suction cup on MuJoCo 3.9.0, not the thesis' CoppeliaSim UR10; "
+         "demonstrations come from a scripted expert, not keyboard teleoperation. Rendered demonstrations: "
+         "[videos/](videos/).",
+    studies=(Study("data/collect_ch4"), Study("data/collect_ch3")),
+    extra=(
+        ("experiment=data/render_demo", "env=package_to_order_4of5"),
+        ("experiment=data/render_demo", "env=package_to_order_3of5", "env.sim.case=2"),
+        ("experiment=data/render_demo", "env=error_correction_one_object_case1"),
+        ("experiment=data/render_demo", "env=error_correction_two_object_case2"),
+    ),
+)

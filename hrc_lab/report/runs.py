@@ -36,6 +36,7 @@ def _finished_runs(tracking_uri: str, experiment: str, sweep: str | None) -> pd.
         {
             "run_id": r.info.run_id,
             "start_time": r.info.start_time,
+            "end_time": r.info.end_time,
             "status": r.info.status,
             **{f"{PARAM_PREFIX}{k}": v for k, v in r.data.params.items()},
             **r.data.tags,

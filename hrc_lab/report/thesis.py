@@ -100,3 +100,36 @@ def thesis_value(values: Sequence | None, columns: Sequence, key) -> object | No
         return None
     i = names.index(str(key))
     return values[i] if i < len(values) else None
+
+
+def thesis_row(path: str, columns: Sequence[str] = ()) -> tuple[list[str], list[tuple[float | None, float | None]]]:
+    """The thesis' values at the dotted ``path`` of ``thesis_results.yaml`` (e.g. ``ch4.table_4_3.ours.sr``) as
+    (columns, [(mean, std or None), ...]). A row is a list laid out as the nearest enclosing ``columns`` list, a
+    mapping of column -> value, or one value (column ""); a value is a number or ``[mean, std]``. ``columns``
+    picks and orders the columns (default: all of the row's)."""
+    node: object = thesis_results()
+    layout: list[str] = []
+    for part in path.split("."):
+        if isinstance(node, dict) and "columns" in node:
+            layout = [str(column) for column in node["columns"]]
+        if not isinstance(node, dict) or part not in node:
+            raise KeyError(f"thesis_results.yaml has no {path!r} (at {part!r})")
+        node = node[part]
+    if isinstance(node, dict):
+        values = {str(key): value for key, value in node.items()}
+    elif isinstance(node, list) and layout and len(node) == len(layout):
+        values = dict(zip(layout, node, strict=True))
+    else:
+        values = {"": node}
+    wanted = [str(column) for column in columns] or list(values)
+    missing = [column for column in wanted if column not in values]
+    if missing:
+        raise KeyError(f"thesis_results.yaml {path!r} has no column(s) {missing} (it has {list(values)})")
+    return wanted, [_pair(values[column]) for column in wanted]
+
+
+def _pair(value) -> tuple[float | None, float | None]:
+    if isinstance(value, list | tuple):
+        mean, std = (list(value) + [None, None])[:2]
+        return (None if mean is None else float(mean), None if std is None else float(std))
+    return (None if value is None else float(value), None)
