@@ -1,7 +1,8 @@
 """Which process is which: a live process' identity that outlives PID reuse (used by the runs' ``process_start``
 tag, ``hrc-lab-runs stale`` and ``hrc-lab-server stop``), which machine it runs on (the runs' ``cpu`` tags,
-``hrc-lab-reproduce``'s summary), which code it runs (the runs' ``commit`` tag, the reports' headers), and the one way hrc_lab signals and stops a process group (``hrc-lab-server``'s
-MLflow server, ``hrc-lab-reproduce``'s steps)."""
+``hrc-lab-reproduce``'s summary), which code it runs (the runs' ``commit`` tag, the reports' headers), and the
+one way hrc_lab signals and stops a process group (``hrc-lab-server``'s MLflow server, ``hrc-lab-reproduce``'s
+steps)."""
 
 from __future__ import annotations
 
