@@ -26,6 +26,7 @@ from hydra.errors import ConfigCompositionException, MissingConfigException, Ove
 from omegaconf import DictConfig
 
 from hrc_lab.config import LOGGERS, ConfigError, ValidatedConfig, validate_config
+from hrc_lab.console import headline, quiet_third_party
 from hrc_lab.interrupts import RunInterrupted, exit_interrupted, signals_raise
 from hrc_lab.run_naming import CONF_DIR, is_optuna, job_tags, method_of, run_name
 
@@ -115,13 +116,13 @@ def _run(cfg: DictConfig) -> dict[str, float]:
         tracker.log_text(str(output_dir.resolve()), "hydra/output_dir.txt")
         metrics = protocol(RunContext(validated, tracker, cfg.seed, output_dir))
         tracker.log_metrics(metrics)
-    shown = ", ".join(f"{k}={v:.3f}" for k, v in metrics.items() if "latency" not in k and not k.startswith("n_"))
-    log.info("%s: %s (MLflow run %s)", name, shown, tracker.run_id)
+    log.info("%s: %s (MLflow run %s)", name, headline(metrics), tracker.run_id)
     return metrics
 
 
 @hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="config")
 def _hydra_main(cfg: DictConfig) -> float | None:
+    quiet_third_party()  # in a launcher's worker too (a joblib worker runs this function, not main())
     try:
         metrics = run(cfg)
     except ConfigError as err:
@@ -165,6 +166,7 @@ COMPOSITION_ERRORS = (ConfigCompositionException, MissingConfigException, Overri
 
 
 def main() -> None:
+    quiet_third_party()
     if not CONF_DIR.is_dir():
         sys.exit(f"hrc-lab: no config folder at {CONF_DIR}; install hrc_lab from a checkout with `pip install -e .`")
     # Hydra reports a config it cannot compose like a failed job (exit 1); with its errors raised, hrc-lab tells them

@@ -32,8 +32,8 @@ from pathlib import Path
 import pandas as pd
 
 from hrc_lab.config import runs_dir
+from hrc_lab.console import quiet_third_party
 from hrc_lab.processes import code_identity, machine_identity, signal_group
-from hrc_lab.report.plans import PLANS
 
 CHAPTERS = ("ch3", "ch4", "ch5", "ch6", "data")
 
@@ -70,6 +70,8 @@ def _sweep(topic: str, args: tuple[str, ...], name: str) -> Step:
 
 def build_plan() -> list[Step]:
     """Every study of every plan (chapter order, then the plan's order), then every report."""
+    from hrc_lab.report.plans import PLANS
+
     topics = sorted(PLANS, key=lambda topic: CHAPTERS.index(chapter_of(topic)))
     sweeps, reports = [], []
     for topic in topics:
@@ -85,7 +87,13 @@ def build_plan() -> list[Step]:
     return sweeps + reports
 
 
-PLAN: list[Step] = build_plan()
+def __getattr__(name: str):
+    """``PLAN``: :func:`build_plan`, built on first use (importing the plans imports every report module, after the
+    console script has quieted the libraries' warnings)."""
+    if name == "PLAN":
+        globals()["PLAN"] = build_plan()
+        return globals()["PLAN"]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def select(plan: list[Step], selections: list[str]) -> list[Step]:
@@ -379,6 +387,8 @@ def check(committed: Path, fresh: Path, topics: list[str]) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from hrc_lab.report.plans import PLANS
+
     choices = ["all", *CHAPTERS, *sorted(PLANS)]
     parser = argparse.ArgumentParser(
         prog="hrc-lab-reproduce", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -420,7 +430,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
 
-    steps = select(PLAN, args.selection)
+    steps = select(sys.modules[__name__].PLAN, args.selection)
     if args.reports_only:
         steps = [step for step in steps if step.kind == "report"]
     out = None
@@ -438,6 +448,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def console() -> None:
+    quiet_third_party()
     sys.exit(main())
 
 

@@ -11,11 +11,14 @@ import argparse
 from pathlib import Path
 
 from hrc_lab.config import default_tracking_uri
-from hrc_lab.report.build import build_topic
-from hrc_lab.report.plans import PLANS
+from hrc_lab.console import quiet_third_party
 
 
 def main(argv: list[str] | None = None) -> None:
+    quiet_third_party()
+    from hrc_lab.report.build import build_topic
+    from hrc_lab.report.plans import PLANS
+
     parser = argparse.ArgumentParser(prog="hrc-lab-report", description=__doc__)
     parser.add_argument("topic", choices=sorted(PLANS), help="which report to build")
     parser.add_argument("--tracking-uri", default=default_tracking_uri(),
