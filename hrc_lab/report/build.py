@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt
 import pandas as pd
 from mlflow.tracking import MlflowClient
 
-from hrc_lab.report.headline import opening_tables, thesis_rows, write_scoreboard
+from hrc_lab.report.headline import ROWS_FILE, TABLES_FILE, opening_tables, thesis_rows, write_scoreboard
 from hrc_lab.report.plan import Plan, Study
 from hrc_lab.report.plans import PLANS, plan_of
 from hrc_lab.report.runs import finished_runs, newest_runs, sweeps_line, variants_of
@@ -138,10 +138,12 @@ def build_report(plan: Plan, tracking_uri: str, out_dir: Path) -> Path:
         parts.append(write_section(section, folder, tracking_uri, study.key, study.command, study.key, study.question))
     rows = thesis_rows(plan, results)
     folder.mkdir(parents=True, exist_ok=True)
-    rows.to_csv(folder / "thesis_rows.csv", index=False)
+    rows.to_csv(folder / ROWS_FILE, index=False)
+    (folder / TABLES_FILE).write_text("\n".join(opening_tables(plan, rows, links=False)))
+    opening = opening_tables(plan, rows)
     body = [f"# {plan.title}", "", *header(plan, tracking_uri, runs_read, missing), "",
             f"{plan.note.strip()} Thesis values: Ma (2024), `hrc_lab/reference/thesis_results.yaml`.", "",
-            *opening_tables(plan, rows), *parts]
+            *(["## The thesis' results beside ours", "", *opening] if opening else []), *parts]
     path = out_dir / f"{topic}.md"
     path.write_text("\n".join(body).rstrip("\n") + "\n")
     write_scoreboard(out_dir)

@@ -110,14 +110,18 @@ def _kind_label(records: pd.DataFrame) -> str:
     return label + (" ✓" if met else "") if first["kind"] != "thesis" else label
 
 
-def opening_tables(plan: Plan, rows: pd.DataFrame) -> list[str]:
+TABLES_FILE = "thesis_tables.md"  # <reports>/<topic>/thesis_tables.md: the opening tables, for the docs to include
+
+
+def opening_tables(plan: Plan, rows: pd.DataFrame, links: bool = True) -> list[str]:
     """Markdown: one table per thesis table or figure of the plan, in the thesis' layout (its rows, its columns),
-    each row as the thesis, the thesis' method as hrc_lab runs it, and hrc_lab's ★ method."""
+    each row as the thesis, the thesis' method as hrc_lab runs it, and hrc_lab's ★ method. ``links``: each of ours
+    links the section (anchor) it comes from (in the report; a docs page that includes the tables has no such
+    anchors)."""
     if rows.empty:
         return []
-    lines = ["## The thesis' results beside ours", "",
-             "hrc_lab: mean ± std over 3 seeds unless the row says; ✓ within the thesis' spread or above "
-             "(`hrc_lab/report/headline.py`); ★ hrc_lab's method. Each number comes from the section linked.", ""]
+    lines = ["hrc_lab: mean ± std over 3 seeds unless the row says; ✓ within the thesis' spread or above "
+             "(`hrc_lab/report/headline.py`); ★ hrc_lab's method.", ""]
     for table, part in rows.groupby("table", sort=False):
         columns = list(dict.fromkeys(part["column"]))
         header = ["row", "", *[column or "value" for column in columns], "why ours differs"]
@@ -133,7 +137,7 @@ def opening_tables(plan: Plan, rows: pd.DataFrame) -> list[str]:
                     hit = records[records["column"] == column]
                     cells.append(_cell(hit.iloc[0]) if len(hit) else "")
                 label, study = _kind_label(records), records.iloc[0]["study"]
-                label = f"[{label}](#{study})" if study else label
+                label = f"[{label}](#{study})" if study and links else label
                 why = one.iloc[0]["why"] if kind == "as written" else ""
                 lines.append("| " + " | ".join([one.iloc[0]["name"] if first else "", label, *cells, why]) + " |")
                 first = False
