@@ -21,7 +21,7 @@ def _anchors(path: Path) -> set[str]:
 
 def test_readme_is_short_and_starts_with_the_two_commands():
     lines = (ROOT / "README.md").read_text().splitlines()
-    assert len(lines) <= 150
+    assert len(lines) <= 100 and max(map(len, lines)) <= 220  # the results are in reports/README.md, linked
     top = "\n".join(lines[:20])
     assert "bash scripts/install.sh && .venv/bin/hrc-lab experiment=ch4/table_4_1_quick hydra/launcher=joblib" in top
     assert "bash scripts/install.sh && .venv/bin/python -m pytest" in top
