@@ -155,14 +155,18 @@ def resumable(tracking_uri: str) -> list[tuple[str, str]]:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="hrc-lab-runs", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--tracking-uri", default=default_tracking_uri(),
-                        help="MLflow tracking URI (default: the store under $HRC_LAB_RUNS, else runs/)")
+    uri_help = "MLflow tracking URI (default: the store under $HRC_LAB_RUNS, else runs/)"
+    parser.add_argument("--tracking-uri", default=default_tracking_uri(), help=uri_help)
+    # the same option after the subcommand, where a user types it (`hrc-lab-runs stale --tracking-uri URL`)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--tracking-uri", default=argparse.SUPPRESS, help=uri_help)
     commands = parser.add_subparsers(dest="command", required=True)
-    stale_cmd = commands.add_parser("stale", help="mark RUNNING runs whose process is gone KILLED")
+    stale_cmd = commands.add_parser("stale", parents=[common], help="mark RUNNING runs whose process is gone KILLED")
     stale_cmd.add_argument("--dry-run", action="store_true", help="only list them")
     stale_cmd.add_argument("--other-hosts-older-than", type=float, default=None, metavar="HOURS",
                            help="also mark runs of other hosts started more than HOURS ago")
-    commands.add_parser("resumable", help="list the killed or failed runs left to resume, with the commands")
+    commands.add_parser("resumable", parents=[common],
+                        help="list the killed or failed runs left to resume, with the commands")
     args = parser.parse_args(argv)
     if args.command == "resumable":
         print(f"{len(resumable(args.tracking_uri))} run(s) to resume")

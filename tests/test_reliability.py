@@ -153,6 +153,7 @@ def test_console_scripts_read_the_store_under_hrc_lab_runs(tmp_path, monkeypatch
     """hrc-lab-runs and hrc-lab-report default to the store jobs log to: ``$HRC_LAB_RUNS/mlflow.db`` (issue 49: the
     runs tool made an empty ./runs/mlflow.db instead)."""
     from hrc_lab import runs_cli
+    from hrc_lab.report import build as report_build
     from hrc_lab.report import cli as report_cli
 
     monkeypatch.chdir(tmp_path)
@@ -166,6 +167,11 @@ def test_console_scripts_read_the_store_under_hrc_lab_runs(tmp_path, monkeypatch
     runs_cli.main(["stale"])
     assert client.get_run(dead).info.status == "KILLED"
     assert not (tmp_path / "runs").exists()
+    other = f"sqlite:///{tmp_path}/other/mlflow.db"  # the option where a user types it: after the subcommand
+    experiment = MlflowClient(other).create_experiment("exp", artifact_location=(tmp_path / "art2").as_uri())
+    dead = MlflowClient(other).create_run(experiment, tags=process_identity(gone.pid)).info.run_id
+    runs_cli.main(["stale", "--tracking-uri", other])
+    assert MlflowClient(other).get_run(dead).info.status == "KILLED"
     seen = {}
 
     def build_topic(topic, uri, *args, **kwargs):
@@ -173,7 +179,7 @@ def test_console_scripts_read_the_store_under_hrc_lab_runs(tmp_path, monkeypatch
         (tmp_path / "report.md").write_text("")
         return tmp_path / "report.md"
 
-    monkeypatch.setattr(report_cli, "build_topic", build_topic)
+    monkeypatch.setattr(report_build, "build_topic", build_topic)
     report_cli.main(["ch3_rl"])
     assert seen["uri"] == f"sqlite:///{tmp_path}/elsewhere/mlflow.db"
 
