@@ -58,7 +58,8 @@ def _ours(row: Row, pick: Pick | None, kind: str, results: dict[str, pd.DataFram
             if row.claim:
                 record["met"] = None if pd.isna(value.get("met")) else bool(value.get("met"))
             elif ref is not None and value["mean"] == value["mean"]:
-                record["met"] = within(value["mean"], value["std"], ref, ref_std, row.higher)
+                record["met"] = within(value["mean"], value["std"], ref, ref_std,
+                                       row.higher and column not in row.lower)
         records.append(record)
     return records
 

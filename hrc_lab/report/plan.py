@@ -129,7 +129,8 @@ class Row:
     ``claim`` instead (the thesis' words); the section's results then say in ``text`` what ours shows and in ``met``
     whether it agrees. ``why``: one short line on why ours differs,
     which may link an ablation of the plan as ``[text](#<study key>)``. ``higher``: whether more is better (a
-    success rate) or less (steps, time); a row is within the thesis' spread when every column is, or above it."""
+    success rate) or less (steps, time); ``lower``: columns where less is better in a row whose others are higher
+    (the steps beside a success rate); a row is within the thesis' spread when every column is, or above it."""
 
     table: str  # the thesis table or figure, e.g. "Table 4.3"
     name: str  # the thesis' row, e.g. "Ours (Algorithm 2)"
@@ -140,6 +141,7 @@ class Row:
     columns: tuple[str, ...] = ()
     why: str = ""
     higher: bool = True
+    lower: tuple[str, ...] = ()
     headline: bool = True  # a row of the scoreboard too (not only of the report's opening table)
 
 
