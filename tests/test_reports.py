@@ -292,46 +292,6 @@ def test_prose_reads_settings_from_params_or_says_not_logged():
     assert "not logged" in old and "1.8" not in old
     assert setting(runs, "protocol.n_folds") == "not logged"
 
-    planner = pd.DataFrame({"cell": ["3goals"], "seed": [0], "sg_acc": [0.9], "sc_acc": [0.8],
-                            "n_assembly_events": [40], "n_screw_events": [12], "latency_ms": [2.0],
-                            "param.protocol.sessions": ["20"]})
-    text = SECTIONS["table_5_2_planner"](planner).markdown
-    assert "later issue" not in text and "ch5_perception" in text and "20 generated sessions" in text
-
-
-def test_hrc_session_section_reads_the_runs_tables(tmp_path):
-    """Table 5.2 extended (ch5_hrc): robot columns from the runs' metrics, the thesis' AD/SG/SC in brackets, what
-    decides an assembly and the refusals from each run's logged tables (``run_tables``)."""
-    logger = LoggerConfig(tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}",
-                          artifact_root=str(tmp_path / "mlartifacts"))
-    for cell, complete in (("1goal", [True, True]), ("3goals", [True, False])):
-        tags = {"chapter": "ch5", "table": "hrc_session", "experiment": "ch5/hrc_session", "method": "hand_lstm_fcn",
-                "cell": cell, "scenario": cell, "seed": "0", "sweep": DEFAULT_SWEEP, "variant": "default",
-                "overrides": f"env=ato_{cell} seed=0", "variant_overrides": ""}
-        with RunTracker(logger, "ch5/hrc_session", f"ch5/hrc_session-{cell}-seed0", tags) as tracker:
-            tracker.log_config(OmegaConf.create({"name": "ch5/hrc_session", "seed": 0,
-                                                 "logger": {"tracking_uri": logger.tracking_uri},
-                                                 "env": {"robot": {"place_tolerance": 0.02}}}))
-            metrics = {"ad_acc": 0.9, "sg_acc": 0.8, "sc_acc": 0.7, "robot_commands": 2.0, "robot_refused_rate": 0.5,
-                       "robot_placement_sr": 1.0, "complete_rate": sum(complete) / 2, "n_sessions": 2.0,
-                       "n_fast_sessions": 0.0, "screw_latency_ms": 30.0, "classify_ms": 8.0,
-                       "tracking_ms_per_frame": 7.0, "pick_place_sim_s": 2.4, "pick_place_wall_s": 0.3}
-            tracker.log_metrics(metrics)
-            tracker.log_table(pd.DataFrame({"session": [0, 1], "fast": [False, False], "sg_acc": [1.0, 0.5],
-                                            "sc_acc": [1.0, float("nan")], "complete": complete}), "hrc_sessions")
-            help_rows = [] if all(complete) else [{"session": 1, "reason": "robot o1->p3: p3 is occupied by o2"}]
-            tracker.log_table(pd.DataFrame(help_rows, columns=["session", "reason"]), "robot_help")
-            video = tmp_path / "session_side_by_side.mp4"
-            video.write_bytes(b"not a real video")
-            tracker.log_artifact(video, "videos")
-    text = build_topic("ch5_hrc", logger.tracking_uri, tmp_path / "report").read_text()
-    assert "90.0 (98.3 ± 1.2)" in text and "| 3 |" in text.replace("|       3 |", "| 3 |")  # one seed: no spread
-    # session 0 of each run was right at every step, session 1 had a wrong guidance (and no screw: SC NaN)
-    assert "Of the 2 sessions whose Semantic Guidance and Semantic Control were right at every step, 2 ended" in text
-    assert "of the 2 with a planner or detection error, 1 did" in text
-    assert "robot o<i>->p<k>: p<k> is occupied by o2 |       1" in text
-    assert (tmp_path / "report" / "ch5_hrc" / "hrc_session.mp4").exists()
-
 
 def test_fig_4_7_section_shows_where_ours_goes_wrong():
     """Per-head, per-stage accuracies and the kinds of wrong picks of ``ours`` (issue 24), and the sentence naming

@@ -5,44 +5,19 @@ from __future__ import annotations
 
 import pandas as pd
 
+from hrc_lab.report.ch5_perception import TABLE_5_2_METRICS
+from hrc_lab.report.ch5_planner import table_5_2_rows
+from hrc_lab.report.headline import results_frame
 from hrc_lab.report.plan import Plan, Study
 from hrc_lab.report.runs import amount, over_seeds, run_tables, setting, spread
 from hrc_lab.report.sections import Section, register_section
-from hrc_lab.report.thesis import fmt, markdown_table, thesis_cells, thesis_fmt, thesis_results
+from hrc_lab.report.thesis import fmt, markdown_table, thesis_cells
 
 CELLS = ["1goal", "2goals", "3goals"]
-
-
-def per_cell(runs: pd.DataFrame, suffix: str, with_thesis: bool) -> tuple[list[dict], list[dict]]:
-    """One row per goal count: AD / SG / SC (thesis in brackets for normal sessions), the robot's commands,
-    refusals, placement success and the completed assemblies; ``suffix`` "" (normal) or "_fast"."""
-    thesis = thesis_results()["ch5"]["table_5_2"]
-    rows, records = [], []
-    for cell in thesis_cells(runs.cell, CELLS):
-        part = runs[runs.cell == cell]
-        goals = int(cell.split("goal")[0])  # "1goal", "3goals", a user's "10goals"
-        ref = thesis.get(f"goals_{goals}", [(None, None)] * 3)  # the thesis' AD, SG, SC; None: a count not run
-        sessions = int(part.n_fast_sessions.sum() if suffix else part.n_sessions.sum())
-        row = {"goals": goals, "seeds": len(part), "sessions": sessions}
-        for k, (metric, title) in enumerate((("ad_acc", "AD %"), ("sg_acc", "SG %"), ("sc_acc", "SC %"))):
-            mean, std = (100 * v for v in spread(part, metric + suffix))
-            row[title] = fmt(mean, std, 1) + (f" ({thesis_fmt(*ref[k], 1)})" if with_thesis else "")
-            records.append({"goals": goals, "sessions": suffix or "normal", "metric": metric, "mean": mean,
-                            "std": std})
-        row["robot commands"] = int(part.get(f"robot_commands{suffix}", pd.Series(dtype=float)).sum())
-        for metric, title in (("robot_refused_rate", "refused %"), ("robot_placement_sr", "placed %"),
-                              ("complete_rate", "assembled %")):
-            mean, std = (100 * v for v in spread(part, metric + suffix))
-            row[title] = fmt(mean, std, 1)
-            records.append({"goals": goals, "sessions": suffix or "normal", "metric": metric, "mean": mean,
-                            "std": std})
-        if recovering(runs):
-            mean, std = spread(part, "recoveries_per_session" + suffix)
-            row["recoveries / session"] = fmt(mean, std, 2)
-            records.append({"goals": goals, "sessions": suffix or "normal", "metric": "recoveries_per_session",
-                            "mean": mean, "std": std})
-        rows.append(row)
-    return rows, records
+# the section's columns (percent): Table 5.2's, then the robot's; per normal and fast sessions (suffix "_fast")
+SHOWN = {"ad_acc": "AD %", "sg_acc": "SG %", "sc_acc": "SC %", "robot_refused_rate": "refused %",
+         "robot_placement_sr": "placed %", "complete_rate": "assembled %"}
+LATENCIES = ("screw_latency_ms", "classify_ms", "tracking_ms_per_frame", "pick_place_sim_s", "pick_place_wall_s")
 
 
 def recovering(runs: pd.DataFrame) -> bool:
@@ -50,102 +25,88 @@ def recovering(runs: pd.DataFrame) -> bool:
     return setting(runs, "protocol.recovery") == "True"
 
 
-def recovery_text(sessions: pd.DataFrame) -> str:
-    """What the recovery did: how many fixes, in how many sessions, and how those sessions ended."""
-    if "recoveries" not in sessions or not len(sessions):
-        return ""
-    fixed = sessions[sessions.recoveries > 0]
-    return (f"**Recovery** (`protocol.recovery=true`, hrc_lab's, beyond Algorithm 3): after every plan, a recorded "
-            "part the inferred goal does not want on its position (or a second part recorded on a position) is "
-            "named, the robot takes the part there back to its bin and places the goal's part, and the loop plans "
-            "again; only a goal that agrees with most recorded pairs is trusted to fix the others, and each position "
-            "is fixed at most once per session. A worker's placement recorded on a position that "
-            "already holds that part type (one of the two was read on the wrong position) is re-read as the nearest "
-            "free position where the inferred goal wants it. Here "
-            f"{int(sessions.recoveries.sum())} recoveries in {len(fixed)} of {len(sessions)} sessions "
-            f"({int(fixed.recovered.sum())} carried out); {int(fixed.complete.sum())} of those {len(fixed)} sessions "
-            "ended assembled.")
+def per_cell(runs: pd.DataFrame) -> tuple[list[dict], list[dict], list[dict]]:
+    """The table's rows (normal sessions), Table 5.2's results (AD / SG / SC in percent, per goal cell) and the CSV's
+    records (normal and fast sessions: every metric, the robot's commands and recoveries, the latencies)."""
+    rows, results, csv = [], [], []
+    for cell in thesis_cells(runs.cell, CELLS):
+        part = runs[runs.cell == cell]
+        row = {"goals": int(cell.split("goal")[0])}  # "1goal", "3goals", a user's "10goals"
+        for sessions, suffix in (("normal", ""), ("fast", "_fast")):
+            metrics = [*SHOWN, "robot_commands", "recoveries_per_session"]
+            for metric in metrics:
+                values = spread(part, metric + suffix)
+                mean, std = (100 * v for v in values) if metric in SHOWN else values
+                csv.append({"cell": cell, "sessions": sessions, "metric": metric, "mean": mean, "std": std})
+                if suffix:
+                    continue
+                if metric in SHOWN or (metric == "recoveries_per_session" and recovering(runs)):
+                    row[SHOWN.get(metric, "recoveries / session")] = fmt(mean, std, 1 if metric in SHOWN else 2)
+                if metric in TABLE_5_2_METRICS:
+                    results.append({"row": cell, "column": TABLE_5_2_METRICS[metric], "mean": mean, "std": std,
+                                    "n": int(part[metric].notna().sum())})
+        csv += [{"cell": cell, "sessions": "all", "metric": metric, "mean": mean, "std": std}
+                for metric in LATENCIES for mean, std in [spread(part, metric)]]
+        rows.append(row)
+    return rows, results, csv
+
+
+def session_records(sessions: pd.DataFrame, help_table: pd.DataFrame) -> list[dict]:
+    """What decides an assembly, for the CSV: the sessions right at every step (Semantic Guidance and Control) and
+    those with an error, how many of each ended assembled, the recoveries, and every reason the robot asked for help
+    (part types and positions generalised)."""
+    if not len(sessions):
+        return []
+    right = (sessions.sg_acc.fillna(1) == 1) & (sessions.sc_acc.fillna(1) == 1)  # NaN: the session had no such step
+    counts = {"sessions_right": right.sum(), "assembled_of_right": sessions.complete[right].sum(),
+              "sessions_with_error": (~right).sum(), "assembled_of_with_error": sessions.complete[~right].sum()}
+    if "recoveries" in sessions:
+        fixed = sessions[sessions.recoveries > 0]
+        counts |= {"recoveries": sessions.recoveries.sum(), "sessions_recovering": len(fixed),
+                   "assembled_of_recovering": fixed.complete.sum()}
+    reasons = (help_table.reason.str.replace(r"p\d", "p<k>", regex=True)
+               .str.replace(r"\d+\.\d cm", "<x> cm", regex=True)
+               .str.replace(r"(robot|human) o\d->p<k>", r"\1 o<i>->p<k>", regex=True).value_counts()
+               if len(help_table) else pd.Series(dtype=int))
+    counts |= {f"help: {reason}": count for reason, count in reasons.items()}
+    return [{"cell": "all", "sessions": "all", "metric": metric, "mean": float(count), "std": float("nan")}
+            for metric, count in counts.items()]
+
+
+def filmed(runs: pd.DataFrame, sessions: pd.DataFrame) -> tuple[object, str]:
+    """The run whose video the section links and what it shows: the filmed session (``protocol.video_session``;
+    older runs filmed session 0) of the first run (by goal count, seed) whose filmed session ended assembled, with
+    a recovery in it when the loop recovered."""
+    session_of = dict(zip(runs.run_id, runs.get("filmed_session", pd.Series(0.0, index=runs.index)).fillna(0)))
+    wanted = sessions[sessions.session == sessions.run_id.map(session_of)] if len(sessions) else sessions
+    good = set(wanted[wanted.complete.astype(bool) & ((wanted.recoveries > 0) if recovering(runs) else True)].run_id)
+    ordered = runs.sort_values(["cell", "seed"])
+    shown = next((r for r in ordered.itertuples() if r.run_id in good), next(ordered.itertuples()))
+    what = "with a recovery, " if recovering(runs) else ""
+    outcome = f"{what}it ends assembled" if shown.run_id in good else f"no filmed session ended {what}assembled"
+    return shown, f"session {int(session_of[shown.run_id])} of `{shown.cell}`, seed {shown.seed} ({outcome})"
 
 
 @register_section("hrc_session")
 def hrc_session(runs: pd.DataFrame) -> Section:
-    normal, records = per_cell(runs, "", with_thesis=True)
-    fast, fast_records = per_cell(runs, "_fast", with_thesis=False) if runs.n_fast_sessions.sum() else ([], [])
-    help_table = run_tables(runs, "robot_help")
+    rows, results, csv = per_cell(runs)
     sessions = run_tables(runs, "hrc_sessions")
-    right = (sessions.sg_acc.fillna(1) == 1) & (sessions.sc_acc.fillna(1) == 1)  # NaN: the session had no such step
-    cause = (f"Of the {int(right.sum())} sessions whose Semantic Guidance and Semantic Control were right at every "
-             f"step, {int(sessions.complete[right].sum())} ended with the goal assembled; of the {int((~right).sum())} "
-             f"with a planner or detection error, {int(sessions.complete[~right].sum())} did. A wrong command or a "
-             "mis-detected human placement puts a part where the goal wants another, and the position is then "
-             "taken when the right part comes (the table below)." if len(sessions) else "")
-    reasons = (help_table.reason.str.replace(r"p\d", "p<k>", regex=True).str.replace(r"\d+\.\d cm", "<x> cm",
-                                                                                     regex=True)
-               .str.replace(r"(robot|human) o\d->p<k>", r"\1 o<i>->p<k>", regex=True).value_counts()
-               if len(help_table) else pd.Series(dtype=int))
-    detection = thesis_results()["ch5"]["text"]["detection_latency_ms"]
+    csv += session_records(sessions, run_tables(runs, "robot_help"))
+    shown, video = filmed(runs, sessions)
+    recovery = (" ★ Recovery (hrc_lab's, beyond Algorithm 3): the robot takes back a recorded part the inferred goal "
+                "does not want on its position and places the goal's part." if recovering(runs) else "")
     text = [
-        "Table 5.2's generated sessions streamed through MediaPipe tracking, the action detector (`hand_lstm_fcn`) "
-        "and the semantic planner (Algorithm 3), with the robot cell built from the same env spec "
-        "(`hrc_lab/env/robot/assembly_cell.py`: UR5e, suction cup, part bins, bracket p1..p6). Every human "
-        "placement the loop records puts the part on the bracket (no human model); every Semantic Control "
-        "command runs PickandPlace(o, p) with the scripted expert. `refused`: commands the robot could not carry "
-        "out (no part of that type left, position taken, pair not allowed by Table 5.1), so it asked for help; "
-        "`placed`: commands it executed whose part rests within "
-        f"{amount(runs, 'env.robot.place_tolerance', 'm')} of the position with no collision; `assembled`: "
-        "sessions whose bracket holds exactly the goal at the end. AD / SG / SC as in Table 5.2, on the "
-        f"first {amount(runs, 'protocol.sessions', 'normal sessions')} of `ch5/table_5_2`'s of the same seed "
-        "(AD depends on the detector only; SG and SC can differ where "
-        "the cell refused a step, which the planner then never sees); thesis (20 real experiments x 5) in brackets; "
-        f"{over_seeds(runs)}. The video is generated in advance, so it shows the "
-        "expert's part appearing after each screw whatever the robot did; the cell is what the robot really did.",
+        f"Table 5.2's first {amount(runs, 'protocol.sessions', 'sessions')} per seed through MediaPipe, the detector "
+        "and Algorithm 3, a UR5e running each Semantic Control command as PickandPlace(o, p) in the robot cell. "
+        "Refused: commands it could not carry out; placed: executed ones whose part rests within "
+        f"{amount(runs, 'env.robot.place_tolerance', 'm')}; assembled: sessions ending with the goal; "
+        f"{over_seeds(runs)}.{recovery} Video: {video}.",
         "",
-        "Normal sessions:",
-        "",
-        markdown_table(pd.DataFrame(normal)),
-        "",
-        "Fast sessions (every action about twice as fast, motion-blurred; the thesis' stated failure case):",
-        "",
-        markdown_table(pd.DataFrame(fast)) if fast else "(none in these runs)",
-        "",
-        cause,
-        "",
-        recovery_text(sessions) if recovering(runs) else "",
-        "",
-        "Placements the cell refused or that failed (all sessions; `robot`: a command the robot could not carry "
-        "out, so it asked for help; `human`: a placement the loop recorded that the cell could not hold, e.g. a "
-        "position a wrong earlier step had filled; part types and positions generalised):",
-        "",
-        (reasons.rename_axis("reason").reset_index(name="count").to_markdown(index=False) if len(reasons)
-         else "(never)"),
-        "",
-        f"Latency on this CPU: from the start of the frame that closed a screw window (its tracking included) to "
-        f"the robot's first motion command {fmt(*spread(runs, 'screw_latency_ms'), 1)} ms (median per run; thesis: "
-        f"detection in {detection} ms); detector {fmt(*spread(runs, 'classify_ms'), 1)} ms per window; "
-        f"MediaPipe {fmt(*spread(runs, 'tracking_ms_per_frame'), 1)} ms per frame. One PickandPlace takes "
-        f"{fmt(*spread(runs, 'pick_place_sim_s'), 2)} s of simulated time "
-        f"({fmt(*spread(runs, 'pick_place_wall_s'), 2)} s of wall clock).",
+        markdown_table(pd.DataFrame(rows)),
     ]
-    # the video: the filmed session (protocol.video_session; older runs filmed session 0) of the first run (by goal
-    # count, seed) whose filmed session ended assembled, with a recovery in it when the loop recovered
-    filmed = dict(zip(runs.run_id, runs.get("filmed_session", pd.Series(0.0, index=runs.index)).fillna(0)))
-    wanted = sessions[sessions.session == sessions.run_id.map(filmed)] if len(sessions) else sessions
-    good = wanted[wanted.complete.astype(bool) & ((wanted.recoveries > 0) if recovering(runs) else True)]
-    shown_ok = set(good.run_id)
-    ordered = runs.sort_values(["cell", "seed"])
-    shown = next((r for r in ordered.itertuples() if r.run_id in shown_ok), next(ordered.itertuples()))
-    what = "with a recovery, " if recovering(runs) else ""
-    outcome = f"{what}it ends assembled" if shown.run_id in shown_ok else f"no filmed session ended {what}assembled"
-    log = ""
-    if recovering(runs) and len(wanted):
-        lines = wanted.recovery_log[wanted.run_id == shown.run_id].fillna("")
-        log = f" The loop said: \"{lines.iloc[0]}\"." if len(lines) and lines.iloc[0] else ""
-    text.append(f"The video (linked below): session {int(filmed[shown.run_id])} of "
-                f"`{shown.cell}`, seed {shown.seed} ({outcome}); the worker's view with what the system saw and said, "
-                f"beside the robot cell with its last command.{log}")
     artifacts = {"hrc_session.mp4": (shown.run_id, "videos/session_side_by_side.mp4")}
-    return Section("The HRC loop with the robot: Table 5.2 extended", "\n".join(text),
-                   pd.DataFrame(records + fast_records), {}, artifacts)
+    return Section("The HRC loop with the robot: Table 5.2 extended", "\n".join(text), pd.DataFrame(csv), {},
+                   artifacts, results=results_frame(results))
 
 
 # The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
@@ -154,5 +115,11 @@ PLAN = Plan(
     title="Ch.5 human-robot collaboration with the robot in the loop (Algorithm 3's PickandPlace)",
     note="The worker is a generated video, not a person on a RealSense camera; the robot is a simulated UR5e "
          "with a suction cup in robosuite, not the thesis' UR10 at a real bench.",
-    studies=(Study("ch5/hrc_session"),),
+    studies=(
+        Study("ch5/hrc_session"),
+        Study("ch5/hrc_session", ("protocol.recovery=True",), key="recovery", star=True,
+              title="★ The HRC loop with the robot and hrc_lab's recovery from contradicting placements"),
+    ),
+    rows=table_5_2_rows("Table 5.2 with the robot in the loop", "hrc_session", {}, star="recovery",
+                        star_label="recovery"),
 )
