@@ -212,23 +212,27 @@ class HRCGoalEnv(gym.Env):
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         rest_z = self.cell.object_positions()[:, 2] if self.release_on_support else None
-        self.cell.step(self.to_cell_action(action))
+        self.cell.step(self.to_cell_action(action), info=False)  # the cell's own reward and info are not read
         if self.release_on_support:
             self._release_on_support(rest_z)
         self.elapsed_steps += 1
-        obs = self._obs()
+        poses = self._poses()  # the state after the step, read once
+        achieved = self._achieved(poses)
+        obs = self._obs(poses, achieved)
         collided = bool(self.cell.collisions)
-        reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], {"collided": collided}))
-        success = not collided and bool(sparse_reward(obs["achieved_goal"], obs["desired_goal"], self.delta_r,
-                                                      self.dims_per_object, self._yaw_orders()) == 0.0)
+        within = sparse_reward(obs["achieved_goal"], obs["desired_goal"], self.delta_r, self.dims_per_object,
+                               self._yaw_orders())  # Eq. 3.6 on the observation's goals
+        reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], {"collided": collided})
+                       if self.dense or self.collision_fails else within)
+        success = not collided and bool(within == 0.0)
         info = {
             "is_success": success,
             "success": success,
             "collided": collided,
             "collisions": list(self.cell.collisions),
-            "goal_distances": self.goal_distances(),
+            "goal_distances": self.goal_distances(achieved),
             "held": bool(self.cell.suction.held >= 0),
-            "moved_m": self.moved(),
+            "moved_m": self.moved(achieved),
         }
         truncated = self.elapsed_steps >= self.horizon
         return obs, reward, False, truncated, info
@@ -301,11 +305,13 @@ class HRCGoalEnv(gym.Env):
     def predicted_lip(self, action: np.ndarray) -> np.ndarray:
         """p_{t+1}: the lip after ``action`` (in [-1, 1]), by forward kinematics at the joints it would command;
         the simulation is not stepped."""
-        return self.cell.lip_kinematics(self.cell.joint_targets(self.to_cell_action(action)))[0]
+        return self.cell.lip_position(self.cell.joint_targets(self.to_cell_action(action)))
 
-    def moved(self) -> float:
-        """How far the goal object that moved most is from where it was at the episode's start, m."""
-        difference = (self._achieved() - self._start).reshape(-1, self.dims_per_object)[:, :3]
+    def moved(self, achieved: np.ndarray | None = None) -> float:
+        """How far the goal object that moved most is from where it was at the episode's start, m (``achieved``:
+        :meth:`_achieved` of the state now, when the caller has it)."""
+        achieved = self._achieved() if achieved is None else achieved
+        difference = (achieved - self._start).reshape(-1, self.dims_per_object)[:, :3]
         return float(np.linalg.norm(difference, axis=1).max())
 
     def desired_goal(self) -> np.ndarray:
@@ -313,9 +319,11 @@ class HRCGoalEnv(gym.Env):
         ``desired_goal`` before its float32 cast)."""
         return self._desired.copy()
 
-    def goal_distances(self) -> np.ndarray:
-        """|P_obj - P_goal| of every goal object (its yaw error under its symmetry, as the reward's)."""
-        difference = goal_differences(self._achieved(), self._desired, self.dims_per_object, self._yaw_orders())
+    def goal_distances(self, achieved: np.ndarray | None = None) -> np.ndarray:
+        """|P_obj - P_goal| of every goal object (its yaw error under its symmetry, as the reward's; ``achieved``:
+        :meth:`_achieved` of the state now, when the caller has it)."""
+        achieved = self._achieved() if achieved is None else achieved
+        difference = goal_differences(achieved, self._desired, self.dims_per_object, self._yaw_orders())
         return np.linalg.norm(difference, axis=-1)
 
     # --- internals ------------------------------------------------------------------------------------------------
@@ -407,22 +415,25 @@ class HRCGoalEnv(gym.Env):
     def _poses(self) -> np.ndarray:
         return np.column_stack([self.cell.object_positions(), self.cell.object_yaws()])
 
-    def _achieved(self) -> np.ndarray:
-        poses = self._poses()[self.goal_objects, : self.dims_per_object]
+    def _achieved(self, poses: np.ndarray | None = None) -> np.ndarray:
+        poses = (self._poses() if poses is None else poses)[self.goal_objects, : self.dims_per_object]
         if self.dims_per_object == 4:  # the yaw under each goal object's symmetry
             poses[:, 3] = wrap_yaw(poses[:, 3], self.yaw_orders)
         return poses.ravel()
 
-    def _observation(self) -> np.ndarray:
+    def _observation(self, poses: np.ndarray | None = None) -> np.ndarray:
         cell = self.cell
         held = [float(cell.suction.held >= 0)]
-        return np.concatenate([cell.arm_qpos(), cell.eef_position(), cell.eef_quaternion(), self._poses().ravel(),
-                               held])
+        poses = self._poses() if poses is None else poses
+        return np.concatenate([cell.arm_qpos(), cell.eef_position(), cell.eef_quaternion(), poses.ravel(), held])
 
-    def _obs(self) -> dict[str, np.ndarray]:
+    def _obs(self, poses: np.ndarray | None = None, achieved: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """The observation of the state now (``poses``, ``achieved``: :meth:`_poses` and :meth:`_achieved` of it,
+        when the caller has them)."""
+        poses = self._poses() if poses is None else poses
         return {
-            "observation": self._observation().astype(np.float32),
-            "achieved_goal": self._achieved().astype(np.float32),
+            "observation": self._observation(poses).astype(np.float32),
+            "achieved_goal": (self._achieved(poses) if achieved is None else achieved).astype(np.float32),
             "desired_goal": self._desired.astype(np.float32),
         }
 

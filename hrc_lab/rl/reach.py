@@ -30,7 +30,7 @@ class ReachGoalEnv(HRCGoalEnv):
         offset[2] = abs(offset[2])
         self._desired = self.lip() + offset
 
-    def _achieved(self) -> np.ndarray:
+    def _achieved(self, poses: np.ndarray | None = None) -> np.ndarray:
         return self.lip()
 
 

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 from tqdm import tqdm
@@ -51,13 +52,37 @@ class _Worker:
         return self.make_env(self.index)
 
 
+class LeanDummyVecEnv(DummyVecEnv):
+    """stable-baselines3's ``DummyVecEnv`` whose step returns copies of its observation arrays and a new list of
+    its envs' info dicts instead of deep copies of both (SB3 copies so that its reused buffers are not changed under
+    the caller; the goal env returns new info dicts, lists and arrays every step): the same values, ~0.1 ms less a
+    step."""
+
+    def step_wait(self):
+        for env_idx in range(self.num_envs):
+            obs, self.buf_rews[env_idx], terminated, truncated, self.buf_infos[env_idx] = self.envs[env_idx].step(
+                self.actions[env_idx])
+            self.buf_dones[env_idx] = terminated or truncated
+            self.buf_infos[env_idx]["TimeLimit.truncated"] = truncated and not terminated
+            if self.buf_dones[env_idx]:
+                self.buf_infos[env_idx]["terminal_observation"] = obs
+                obs, self.reset_infos[env_idx] = self.envs[env_idx].reset()
+            self._save_obs(env_idx, obs)
+        return self._obs_from_buf(), np.copy(self.buf_rews), np.copy(self.buf_dones), list(self.buf_infos)
+
+    def _obs_from_buf(self):
+        if not isinstance(self.observation_space, gym.spaces.Dict):
+            return super()._obs_from_buf()
+        return {key: np.copy(value) for key, value in self.buf_obs.items()}
+
+
 def training_envs(make_env: Callable[[int], gym.Env], n_envs: int) -> VecEnv:
-    """``n_envs`` environments ``make_env(0..n_envs-1)``: in this process when one (``DummyVecEnv``), one process
-    each otherwise (``SubprocVecEnv``)."""
+    """``n_envs`` environments ``make_env(0..n_envs-1)``: in this process when one (:class:`LeanDummyVecEnv`), one
+    process each otherwise (``SubprocVecEnv``)."""
     if n_envs < 1:
         raise ValueError(f"rl.n_envs must be >= 1, got {n_envs}")
     if n_envs == 1:
-        return DummyVecEnv([lambda: make_env(0)])
+        return LeanDummyVecEnv([lambda: make_env(0)])
     return SubprocVecEnv([_Worker(make_env, i) for i in range(n_envs)], start_method="forkserver")
 
 

@@ -324,6 +324,14 @@ class HRCCell(ManipulationEnv):
         effective = np.column_stack([j[:, 0], j[:, 1] - j[:, 3], j[:, 2] - j[:, 3]])
         return scratch.site_xpos[self._grip_site].copy(), effective
 
+    def lip_position(self, arm_q: np.ndarray) -> np.ndarray:
+        """:meth:`lip_kinematics`' position alone (the same forward kinematics, without the Jacobian)."""
+        model, scratch = self.sim.model._model, self._scratch
+        scratch.qpos[:] = self.sim.data.qpos
+        scratch.qpos[self._arm_qpos] = arm_q
+        mujoco.mj_kinematics(model, scratch)
+        return scratch.site_xpos[self._grip_site].copy()
+
     @staticmethod
     def wrist3_holding_yaw(dq_base: float) -> float:
         """The wrist-3 delta that keeps the tool's yaw, and a held part's, while the base turns by ``dq_base``:
@@ -352,7 +360,9 @@ class HRCCell(ManipulationEnv):
         robot = self.robots[0]
         return robot.part_controllers[robot.arms[0]]
 
-    def step(self, action):
+    def step(self, action, info: bool = True):
+        """One control step (module docstring). ``info=False`` (the goal env, which reads the state itself): the
+        same step, returning ``(None, None, done, {})`` without robosuite's reward and the info's distances."""
         action = np.asarray(action, dtype=float)
         if action.shape != (self.policy_action_dim,):
             raise ValueError(f"action must have shape ({self.policy_action_dim},), got {action.shape}")
@@ -361,9 +371,12 @@ class HRCCell(ManipulationEnv):
         self._step_collisions: list[str] = []
         self._q_cmd = self.joint_targets(action)
         low_level = self._q_cmd - self.arm_qpos()
+        self._step_info = info
         if self.lean_step:
             return self._lean_step(low_level)
         return super().step(low_level)
+
+    _step_info = True  # step()'s info argument, for _post_action
 
     def _lean_step(self, low_level: np.ndarray):
         """robosuite's ``step`` (lite physics) for the joint deltas ``low_level`` without its per-substep
@@ -412,6 +425,9 @@ class HRCCell(ManipulationEnv):
                 self.suction.disable()
         if self.grip_after_step and self._suction_on:
             self.suction.command(True)  # a lip that reached a top face during the step grips now
+        if not self._step_info:  # robosuite's _post_action without its reward (a read of the state)
+            self.done = (self.timestep >= self.horizon) and not self.ignore_done
+            return None, self.done, {}
         reward, done, info = super()._post_action(action)
         distances = self.goal_distances()
         info.update(
@@ -529,10 +545,10 @@ class HRCCell(ManipulationEnv):
     # --- state --------------------------------------------------------------------------------------------------
 
     def object_positions(self) -> np.ndarray:
-        return np.array([self.sim.data.xpos[b] for b in self._object_bodies])
+        return self.sim.data._data.xpos[self._object_bodies]  # a copy (an index list)
 
     def object_yaws(self) -> np.ndarray:
-        quats = np.array([self.sim.data.xquat[b] for b in self._object_bodies])  # wxyz
+        quats = self.sim.data._data.xquat[self._object_bodies]  # wxyz
         w, x, y, z = quats.T
         return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
@@ -556,7 +572,7 @@ class HRCCell(ManipulationEnv):
     def lip_target_position(self) -> np.ndarray:
         """Where the lip goes once the servo settles on the commanded joints: the servo lags about one control
         step (up to ~4 cm at full speed), so a joint-space controller acts from here, as the expert does."""
-        return self.lip_kinematics(self._q_cmd)[0]
+        return self.lip_position(self._q_cmd)
 
     def goal_distances(self) -> np.ndarray:
         """|P_obj - P_goal| of every task object (Eq. 3.6 / 4.7)."""
