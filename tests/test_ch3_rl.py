@@ -253,3 +253,52 @@ def test_sr_by_subtask_keeps_each_value_in_its_subtasks_place():
                                    columns=columns)) == "– / 0.30"
     assert by_subtask(pd.DataFrame({"s0": [0.9, 0.7], "s1": [0.1, 0.3]}, columns=columns)) == "0.80 / 0.20"
     assert by_subtask(pd.DataFrame({"s0": [float("nan")]}, columns=columns)) == "–"
+
+
+def test_the_guide_cache_key_names_what_trains_the_guide(compose_config, monkeypatch):
+    """The guide (hrc_lab.experiments.ch3_rl.guide_cache_key) is keyed by the seed, the env, the motion config, the
+    protocol's demonstration keys, the trainer and the CPU kernels; the arms of a Fig. 3.13 sweep (lambda, delta_g,
+    H_lo) and the RL budget share it, and Fig. 3.12's env has its own."""
+    from hrc_lab.experiments.ch3_rl import guide_cache_key
+
+    def key(*overrides, experiment="ch3/fig_3_13", seed=0):
+        return guide_cache_key(validate_config(compose_config(f"experiment={experiment}", *overrides)), seed)
+
+    base = key()
+    shared = [["rl.lam=1"], ["rl.lam=0.7", "rl.delta_g=0.02"], ["rl.subgoal_steps=30"], ["protocol.epochs=3"],
+              ["protocol.eval_episodes=5"], ["rl.net_arch=[64]"], ["trainer.default_root_dir=/elsewhere"]]
+    for overrides in shared:
+        assert key(*overrides) == base, overrides
+    own = [["env=error_correction_two_object_case1"], ["motion.steps=17000"], ["motion.ndp.steps=5"],
+           ["motion.place_through_grasp=false"], ["protocol.demos=19"], ["protocol.placement_noise=0.01"],
+           ["protocol.stage_starts=[demonstrated]"], ["protocol.subgoal_path=eef"], ["trainer.max_epochs=5"],
+           ["env.sim.yaw_action=false"]]
+    keys = {base, key(seed=1), key(experiment="ch3/fig_3_12")}
+    for overrides in own:
+        keys.add(key(*overrides))
+    assert len(keys) == len(own) + 3  # each changes the key, and to a key of its own
+    monkeypatch.setenv("MKL_CBWR", "COMPATIBLE")
+    assert key() != base
+
+
+def test_the_arms_of_one_seed_and_env_share_one_trained_guide(run_job):
+    """Two guided arms of a sweep (lambda 1 and 0.7, seed 0, one env) in one runs_dir: the first trains the guide and
+    caches it, the second loads it (tag guide_cache), logs the same networks and the fits' curves, and trains as it
+    would have with a guide of its own (the bit-identity check of the whole job: scripts/check_rl_identity.py)."""
+    first = run_job("experiment=ch3/fig_3_13", "rl.lam=1", *TINY)
+    second = run_job("experiment=ch3/fig_3_13", "rl.lam=0.7", *TINY)
+    tag_first, tag_second = first.run.data.tags["guide_cache"], second.run.data.tags["guide_cache"]
+    assert tag_first.startswith("miss ") and tag_second == "hit " + tag_first.split()[1]
+    assert list((first.runs_dir / "cache" / "ch3").glob("guide_*.pkl"))
+    client = first.client
+
+    def artifact(run, path):
+        return Path(client.download_artifacts(run.info.run_id, path)).read_bytes()
+
+    for path in ("model/subgoal.pt", "model/ndp.pt"):
+        assert artifact(first.run, path) == artifact(second.run, path), path
+    fits = [key for key in first.run.data.metrics if key.startswith(("classifier-", "subgoal-", "ndp-"))]
+    assert fits
+    for key in fits:
+        assert ([(m.step, m.value) for m in client.get_metric_history(first.run.info.run_id, key)]
+                == [(m.step, m.value) for m in client.get_metric_history(second.run.info.run_id, key)]), key

@@ -23,9 +23,14 @@ saw: ``final_policy_success_rate`` (mean over the subtasks), the lower-noise fin
 
 from __future__ import annotations
 
+import time
+from dataclasses import asdict
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 
+from hrc_lab.cache import cache_key, cached
 from hrc_lab.env import ENVS
 from hrc_lab.run_context import RunContext
 from hrc_lab.seeds import EXPERT_DEMO_SCENES, scene_seed
@@ -67,14 +72,99 @@ def train_guide_models(cfg, seed: int, trainer, stage_starts: tuple[str, ...] | 
                            cfg.protocol.subgoals_per_stage, trainer, seed)
 
 
+GUIDE_CACHE_FORMAT = 1  # raise when the cached file's contents or what trains the guide change
+# the protocol keys the guide's demonstrations and training read (guide_demos, train_guide_models)
+GUIDE_PROTOCOL_KEYS = ("demos", "subgoals_per_stage", "segmentation_penalty", "placement_noise", "subgoal_path",
+                       "stage_starts")
+# trainer keys that change what a fit shows or where it writes, not what it trains
+TRAINER_DISPLAY_KEYS = ("default_root_dir", "enable_progress_bar", "enable_model_summary")
+
+
+def guide_cache_key(cfg, seed: int) -> str:
+    """The guide's cache key: everything :func:`train_guide_models` depends on. The seed, the env (its demonstrations'
+    scenes and cell), the ``motion`` config (classifier, sub-goal planner, NDP), the protocol keys of
+    :data:`GUIDE_PROTOCOL_KEYS`, the trainer's settings (but where it writes and what it prints), the CPU kernels
+    and torch's thread count (other kernels or threads round differently, :mod:`hrc_lab.kernels`), and
+    :data:`GUIDE_CACHE_FORMAT`. Not the ``rl`` config: lambda, delta_g and H_lo use the guide, they do not train it
+    (so the arms of a Fig. 3.13 sweep with one seed and env share it)."""
+    import torch
+
+    from hrc_lab.kernels import cpu_kernels
+
+    trainer = {k: v for k, v in asdict(cfg.trainer).items() if k not in TRAINER_DISPLAY_KEYS}
+    return cache_key({"format": GUIDE_CACHE_FORMAT, "seed": int(seed), "env": asdict(cfg.env),
+                      "motion": asdict(cfg.motion),
+                      "protocol": {k: getattr(cfg.protocol, k) for k in GUIDE_PROTOCOL_KEYS},
+                      "trainer": trainer, "kernels": cpu_kernels(), "threads": torch.get_num_threads()}, length=16)
+
+
+def guide_cache_path(cfg, seed: int) -> Path:
+    return Path(cfg.paths.runs_dir) / "cache" / "ch3" / f"guide_{guide_cache_key(cfg, seed)}.pkl"
+
+
+def load_or_train_guide_models(cfg, seed: int, trainer, fitted_metrics=None, path: Path | None = None):
+    """:func:`train_guide_models` once per :func:`guide_cache_key`: from ``<paths.runs_dir>/cache/ch3/guide_<key>.pkl``
+    (``path``) when a job already trained it, else trained (the global generators seeded with ``seed`` first, as a
+    job starts, so the models do not depend on what ran before in the process) and saved there; parallel jobs wait
+    for the first (:func:`hrc_lab.cache.cached`). ``fitted_metrics()``: the metric histories the fits logged
+    (``{key: [(step, value), ...]}``), stored with the models, so a job that loads them can log them as its own.
+    Returns (classifier, planner, ndp), the stored metric histories and whether they came from the cache."""
+    import pickle
+
+    import lightning.pytorch as pl
+
+    path = guide_cache_path(cfg, seed) if path is None else path
+    trained: list = []
+
+    def build(partial: Path) -> None:
+        pl.seed_everything(seed, workers=True, verbose=False)
+        models = train_guide_models(cfg, seed, trainer)
+        metrics = fitted_metrics() if fitted_metrics is not None else {}
+        trained.append((models, metrics))
+        with open(partial, "wb") as file:
+            pickle.dump({"format": GUIDE_CACHE_FORMAT, "models": models, "metrics": metrics}, file,
+                        protocol=pickle.HIGHEST_PROTOCOL)
+
+    cached(path, build)
+    if trained:
+        return trained[0][0], trained[0][1], False
+    with open(path, "rb") as file:
+        saved = pickle.load(file)
+    if not isinstance(saved, dict) or saved.get("format") != GUIDE_CACHE_FORMAT:
+        raise RuntimeError(f"{path}: not a guide of cache format {GUIDE_CACHE_FORMAT}; delete it to retrain")
+    return saved["models"], saved["metrics"], True
+
+
 def train_guide(ctx: RunContext):
-    """The Ch.3 two-level planner (:func:`train_guide_models`) as Algorithm 1's guide
-    (:class:`~hrc_lab.rl.guidance.CorrectionGuide`), its networks logged into the run."""
+    """The Ch.3 two-level planner (:func:`train_guide_models`, once per sweep's seed and env:
+    :func:`load_or_train_guide_models`) as Algorithm 1's guide (:class:`~hrc_lab.rl.guidance.CorrectionGuide`), its
+    networks logged into the run; a job that found it cached logs the fits' metrics the cache stores (tag
+    ``guide_cache``: ``hit`` or ``miss`` and the key)."""
     from hrc_lab.rl.guidance import CorrectionGuide
 
-    classifier, planner, ndp = train_guide_models(ctx.cfg, ctx.seed, ctx.trainer)
-    ctx.tracker.log_torch_model(planner.network, "model/subgoal.pt")
-    ctx.tracker.log_torch_model(ndp.network, "model/ndp.pt")
+    tracker = ctx.tracker
+    before = set(tracker.client.get_run(tracker.run_id).data.metrics)
+
+    def fitted_metrics() -> dict[str, list[tuple[int, float]]]:
+        logged = set(tracker.client.get_run(tracker.run_id).data.metrics) - before
+        return {key: [(m.step, m.value) for m in sorted(tracker.client.get_metric_history(tracker.run_id, key),
+                                                         key=lambda m: (m.timestamp, m.step))]
+                for key in sorted(logged)}
+
+    (classifier, planner, ndp), metrics, hit = load_or_train_guide_models(ctx.cfg, ctx.seed, ctx.trainer,
+                                                                          fitted_metrics)
+    tracker.client.set_tag(tracker.run_id, "guide_cache", f"{'hit' if hit else 'miss'} "
+                                                          f"{guide_cache_key(ctx.cfg, ctx.seed)}")
+    if hit:  # the fits' curves, as the job that trained the guide logged them
+        from mlflow.entities import Metric
+
+        now = int(time.time() * 1000)
+        batch = [Metric(key, float(value), now, int(step)) for key, history in metrics.items()
+                 for step, value in history]
+        for start in range(0, len(batch), 500):
+            tracker.client.log_batch(tracker.run_id, metrics=batch[start : start + 500])
+    tracker.log_torch_model(planner.network, "model/subgoal.pt")
+    tracker.log_torch_model(ndp.network, "model/ndp.pt")
     return CorrectionGuide.from_config(ctx.cfg.rl, classifier, planner, ndp, ctx.cfg.protocol.subgoals_per_stage)
 
 
