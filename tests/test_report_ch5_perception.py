@@ -94,7 +94,9 @@ def test_fig_5_5_and_5_6_rows_and_table_5_2_end_to_end(logger, tmp_path):
     csv = pd.read_csv(out / "ch5_perception" / "table_5_2.csv")
     assert set(csv.metric) >= {"sc_determined_share", "sg_acc_fast", "tracking_ms_per_frame"}
     assert "Not run yet: `hrc-lab experiment=ch5/fig_5_6 perception=hand_lstm_fcn protocol.clips_per_class=96" in report
-    assert (out / "ch5_perception" / "thesis_tables.md").read_text().count("**") == 6  # three tables, no anchors
+    assert "from scratch ([more clips](#detector_clips)) |" in opening  # the why links the ablation
+    included = (out / "ch5_perception" / "thesis_tables.md").read_text()  # for the docs: three tables, no anchors
+    assert included.count("**") == 6 and "](#" not in included and "from scratch (more clips) |" in included
 
 
 def test_fig_5_6_statement_fails_when_a_baseline_beats_ours(logger, tmp_path):

@@ -11,6 +11,7 @@ tolerance being the larger of the thesis' std, our std over seeds and 0.01 (the 
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import pandas as pd
@@ -111,14 +112,15 @@ def _kind_label(records: pd.DataFrame) -> str:
     return label + (" ✓" if met else "") if first["kind"] != "thesis" else label
 
 
+ANCHOR_LINK = re.compile(r"\[([^\]]+)\]\(#[^)]*\)")  # a why's link to an ablation: "[text](#study_key)"
 TABLES_FILE = "thesis_tables.md"  # <reports>/<topic>/thesis_tables.md: the opening tables, for the docs to include
 
 
 def opening_tables(plan: Plan, rows: pd.DataFrame, links: bool = True) -> list[str]:
     """Markdown: one table per thesis table or figure of the plan, in the thesis' layout (its rows, its columns),
     each row as the thesis, the thesis' method as hrc_lab runs it, and hrc_lab's ★ method. ``links``: each of ours
-    links the section (anchor) it comes from (in the report; a docs page that includes the tables has no such
-    anchors)."""
+    links the section (anchor) it comes from, and a row's why the ablations it names (in the report; a docs page
+    that includes the tables has no such anchors: there they are plain text)."""
     if rows.empty:
         return []
     lines = ["hrc_lab: mean ± std over 3 seeds unless the row says; ✓ within the thesis' spread or above "
@@ -140,6 +142,7 @@ def opening_tables(plan: Plan, rows: pd.DataFrame, links: bool = True) -> list[s
                 label, study = _kind_label(records), records.iloc[0]["study"]
                 label = f"[{label}](#{study})" if study and links else label
                 why = one.iloc[0]["why"] if kind == "as written" else ""
+                why = why if links else ANCHOR_LINK.sub(r"\1", why)  # the ablation's anchor is the report's
                 lines.append("| " + " | ".join([one.iloc[0]["name"] if first else "", label, *cells, why]) + " |")
                 first = False
         lines.append("")
