@@ -372,32 +372,6 @@ def test_correction_pairs_start_each_stage_as_demonstrated_and_as_executed():
         correction_pairs([demo], ("planned",))
 
 
-def test_table_3_1_report_shows_where_the_picking_stages_went():
-    from hrc_lab.report.ch3_motion import table_3_1
-
-    runs = pd.DataFrame([{"method": "tc_vi", "scenario": "two_object_case1", "seed": seed,
-                          "sr_blue_0.08": 0.5, "sr_blue_0.06": 0.5, "sr_red_0.08": 0.0, "sr_red_0.06": 0.0,
-                          "steps_blue": 32.0, "steps_red": 34.0, "fail_pick": 0.9,
-                          "stage1_right": 1.0, "stage2_right": right, "stage2_repeat": 1 - right,
-                          "stage2_pick_xy_m": 0.08, "stage2_moved_error_m": 0.03}
-                         for seed, right in ((0, 0.6), (1, 0.8))])
-    section = table_3_1(runs)
-    assert "Where each picking stage went" in section.markdown
-    stages = section.markdown.split("Where each picking stage went")[1]
-    row = next(line for line in stages.splitlines() if line.startswith("| tc_vi    | two_object_case1 |"))
-    assert "0.7 " in row  # stage2_right, the mean over seeds
-
-
-def test_table_3_1_report_marks_the_placement_oracle_as_a_diagnosis():
-    from hrc_lab.report.ch3_motion import table_3_1
-
-    row = {"method": "tc_vi", "scenario": "two_object_case1", "seed": 0, "sr_blue_0.08": 0.4, "sr_blue_0.06": 0.4,
-           "sr_red_0.08": 0.2, "sr_red_0.06": 0.2, "steps_blue": 30.0, "steps_red": 33.0}
-    oracle = table_3_1(pd.DataFrame([{**row, "param.protocol.placement_oracle": "True"}]))
-    default = table_3_1(pd.DataFrame([{**row, "param.protocol.placement_oracle": "False"}]))
-    assert "Diagnosis, not a result" in oracle.markdown and "Diagnosis, not a result" not in default.markdown
-
-
 class _LineEnv:
     """A lip that moves 1 cm along x per step; optionally a collision or the episode's end at a given step."""
 

@@ -538,18 +538,6 @@ def test_table_6_3_section_says_whose_data_it_read():
     assert theirs.title == "Table 6.3: image-based accuracy (a data set in VMRD's layout)"
 
 
-def test_placement_oracle_section_reads_the_second_objects():
-    load_sections()
-    runs = pd.DataFrame({"method": ["tc_vi"] * 2, "seed": [0, 1], "cell": ["error_correction"] * 2,
-                         "scenario": ["two_object_case2"] * 2, "run_id": ["r0", "r1"],
-                         "param.protocol.placement_oracle": ["True"] * 2, "sr_red_0.08": [0.8, 0.7],
-                         "sr_blue_0.08": [0.4, 0.42], "sr_red_0.06": [0.8, 0.7], "sr_blue_0.06": [0.4, 0.42],
-                         "stage2_right": [1.0, 1.0]})
-    markdown = SECTIONS["table_3_1"](runs).markdown
-    assert "two object case2: second object (blue) SR 0.41 ± 0.01 at δr 0.08, c(x) right at 1.00" in markdown
-    assert "outside what c(x) and the planner were trained on" in markdown
-
-
 def markdown_tables(text: str) -> list[tuple[int, str, str]]:
     """(line number, header row, delimiter row) of every pipe table in a markdown text."""
     lines = text.splitlines()

@@ -87,7 +87,7 @@ def test_the_fetch_experiment_validates_and_names_the_task(compose_config):
             validate_config(compose_config("experiment=rl/fetch", override))
 
 
-def test_the_fetch_experiment_runs_end_to_end(run_job, tmp_path):
+def test_the_fetch_experiment_runs_end_to_end(run_job, job_report):
     job = run_job("experiment=rl/fetch", "hydra.mode=RUN", "seed=0", "protocol.epochs=2", "rl.cycles_per_epoch=1",
                   "protocol.eval_episodes=2", "rl.net_arch=[16]", "rl.batch_size=16", "rl.demo_batch_size=4",
                   "rl.gradient_steps=2", "rl.buffer_size=1000")
@@ -98,9 +98,7 @@ def test_the_fetch_experiment_runs_end_to_end(run_job, tmp_path):
     assert 0 <= job.metrics["final_success_rate"] <= job.metrics["best_success_rate"] <= 1
     assert job.metrics["n_episodes"] == 4
     # the report's anchor section: the curve's last epochs pooled, and the wall time the epochs logged
-    from hrc_lab.report.build import build_topic
-
-    report = build_topic("ch3_rl", job.tracking_uri, tmp_path / "report").read_text()
+    report = job_report(job, "ch3_rl")
     row = next(line for line in report.splitlines() if line.startswith("| FetchReach-v4"))
     cells = [c.strip() for c in row.strip("|").split("|")]  # task, seeds, episodes, final, last 3, best, wall, ...
     curve = [m.value for m in client.get_metric_history(run_id, "success_rate")]

@@ -12,21 +12,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hrc_lab.report.plan import Plan, Study  # noqa: E402
-from hrc_lab.report.runs import (  # noqa: E402
-    NOT_LOGGED,
-    amount,
-    keyed,
-    mean_std,
-    over_seeds,
-    setting,
-    setting_values,
-    spread,
-)
+from hrc_lab.report.headline import results_frame  # noqa: E402
+from hrc_lab.report.plan import Pick, Plan, Row, Study  # noqa: E402
+from hrc_lab.report.runs import amount, keyed, over_seeds, setting_number, setting_values, spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
-from hrc_lab.report.thesis import fmt, markdown_table, thesis_fmt, thesis_results  # noqa: E402
+from hrc_lab.report.thesis import fmt, markdown_table, thesis_results  # noqa: E402
 
-# (scenario, object) rows of Table 3.1 and their keys in thesis_results.yaml
+# (scenario, object) rows of Table 3.1 and their keys in thesis_results.yaml; each case's objects in the order
+# they are moved
 ROWS = [
     ("one_object_case1", "blue", ("one_object", "case1_blue")),
     ("one_object_case2", "red", ("one_object", "case2_red")),
@@ -36,86 +29,88 @@ ROWS = [
     ("two_object_case2", "blue", ("two_objects", "case2_blue")),
 ]
 THRESHOLDS = ("0.08", "0.06")
-CONTROLLERS = {"ndp": "Neural dynamic planner (Δ only)", "ndp_direction": "NDP, direction-only outputs",
-               "actor": "Full-observation actor π(r, s)"}
-
-
-# the per-stage metrics of hrc_lab.experiments.ch3_motion.stage_metrics
+METHODS = {"tc_vi": "`tc_vi` (the thesis')", "tc_vi_indexed": "`tc_vi_indexed`", "tc_vi_object": "★ `tc_vi_object`"}
+# the per-stage metrics of hrc_lab.experiments.ch3_motion.stage_metrics, kept in the section's CSV per object
 STAGE_METRIC = re.compile(r"stage\d_(right|repeat|pick_xy_m|pick_z_m|subgoal_xy_m|subgoal_z_m|moved_error_m)")
-METHODS = {"tc_vi": "the thesis' planner",
-           "tc_vi_indexed": "the same with the sub-goal index in its label (not in the thesis: the thesis' planner "
-                            "infers its progress through a stage from r)",
-           "tc_vi_object": "★ hrc_lab's: tc_vi_indexed observing the stage's object and green relative to r and "
-                           "planning each sub-goal relative to the stage's object (green when placing)"}
+DIAGNOSTICS = ("fail_pick", "fail_collision", "fail_horizon", "subgoals_capped", "planning_ms")
+
+
+def result_row(method: str, group: str, key: str) -> str:
+    """The ``results`` row of one planner's one Table 3.1 object, e.g. ``tc_vi:two_objects.case1_red``."""
+    return f"{method}:{group}.{key}"
+
+
+def stage_of(scenario: str, colour: str) -> int:
+    """The picking stage (1 or 2) that moves ``colour`` in ``scenario``."""
+    return [c for s, c, _ in ROWS if s == scenario].index(colour) + 1
+
+
+def _object_results(part: pd.DataFrame, row: str, colour: str) -> list[dict]:
+    """SR at both thresholds and steps of one planner's one object; the steps are one count per object (the
+    same trials, scored at both thresholds)."""
+    records = []
+    for threshold in THRESHOLDS:
+        records.append({"row": row, "column": f"sr_at_{threshold}", **_stat(part, f"sr_{colour}_{threshold}")})
+        records.append({"row": row, "column": f"steps_at_{threshold}", **_stat(part, f"steps_{colour}")})
+    return records
+
+
+def _stat(part: pd.DataFrame, metric: str) -> dict:
+    mean, std = spread(part, metric)
+    return {"mean": mean, "std": std, "n": int(part[metric].notna().sum()) if metric in part else 0}
 
 
 @register_section("table_3_1")
 def table_3_1(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch3"]["table_3_1"]
-    rows, csv = [], []
     methods = [m for m in METHODS if m in set(runs.method)] + sorted(set(runs.method) - set(METHODS))
-    for method in methods:
-        for scenario, colour, (group, key) in ROWS:
+    rows, csv, results = [], [], []
+    for scenario, colour, (group, key) in ROWS:
+        if not (runs.scenario == scenario).any():
+            continue
+        row = {"case": scenario.replace("_", " "), "object": colour,
+               "thesis": f"{thesis[group][key]['sr_at_0.08'][0]:.2f}"}
+        for method in methods:
             part = runs[(runs.scenario == scenario) & (runs.method == method)]
             if part.empty:
                 continue
-            ref = thesis[group][key]
-            row = {"planner": method, "case": scenario.replace("_", " "), "object": colour}
+            row[METHODS.get(method, f"`{method}`")] = fmt(*spread(part, f"sr_{colour}_0.08"))
+            results += _object_results(part, result_row(method, group, key), colour)
+            stage = f"stage{stage_of(scenario, colour)}_"
             entry = {"method": method, "scenario": scenario, "object": colour, "seeds": len(part)}
             for threshold in THRESHOLDS:
-                mean, std = spread(part, f"sr_{colour}_{threshold}")
-                row[f"SR δr={threshold}"] = f"{fmt(mean, std)} ({thesis_fmt(*ref[f'sr_at_{threshold}'])})"
-                entry |= {f"sr_{threshold}_mean": mean, f"sr_{threshold}_std": std,
-                          f"thesis_sr_{threshold}": ref[f"sr_at_{threshold}"][0]}
-            steps_mean, steps_std = spread(part, f"steps_{colour}")
-            row["steps"] = (f"{fmt(steps_mean, steps_std, digits=1)} ({ref['steps_at_0.08'][0]:.1f} / "
-                            f"{ref['steps_at_0.06'][0]:.1f})")
-            entry |= {"steps_mean": steps_mean, "steps_std": steps_std}
-            rows.append(row)
+                entry |= {f"sr_{threshold}_mean": spread(part, f"sr_{colour}_{threshold}")[0],
+                          f"sr_{threshold}_std": spread(part, f"sr_{colour}_{threshold}")[1],
+                          f"thesis_sr_{threshold}": thesis[group][key][f"sr_at_{threshold}"][0]}
+            entry |= {"steps_mean": spread(part, f"steps_{colour}")[0], "steps_std": spread(part, f"steps_{colour}")[1]}
+            entry |= {f"pick_{c.removeprefix(stage)}": float(part[c].mean()) for c in part
+                      if c.startswith(stage) and STAGE_METRIC.fullmatch(c)}
+            entry |= {c: float(part[c].mean()) for c in DIAGNOSTICS if c in part}
             csv.append(entry)
-    fail_columns = [c for c in runs.columns if c.startswith("fail_")]
-    failures = runs.groupby(["method", "scenario"])[fail_columns + [c for c in ("subgoals_capped",)
-                                                                      if c in runs]].mean().round(2)
+        rows.append(row)
     text = [
-        "Per-object success rate of the two-level planner (task classifier c(x), task-conditioned VI sub-goal "
-        f"planner with {amount(runs, 'protocol.subgoals_per_stage', 're-sampled sub-goals per stage')}, neural "
-        f"dynamic planner with at most {amount(runs, 'protocol.max_steps_per_subgoal', 'steps')} per sub-goal), "
-        f"trained on {amount(runs, 'protocol.demos', 'scripted-expert demonstrations')} per case and seed, "
-        f"correcting the human's misplacements in {amount(runs, 'protocol.trials', 'trials')} per case and seed in "
-        "the robosuite cell: an object succeeds when it ends within δr of its goal and no "
-        "forbidden contact happened. Steps: control steps the robot spent on the object (thesis: at δr 0.08 / 0.06). "
-        f"{over_seeds(runs, start=True)}; thesis values in brackets. Planners: "
-        + "; ".join(f"`{m}` {METHODS.get(m, m)}" for m in methods) + ".",
+        "Per-object success at δr 0.08 m of the two-level planner correcting the human's misplacements "
+        f"({amount(runs, 'protocol.trials', 'trials')} per case and seed, "
+        f"{amount(runs, 'protocol.demos', 'scripted-expert demonstrations')} per case, at most "
+        f"{amount(runs, 'protocol.max_steps_per_subgoal', 'steps')} per sub-goal): an object succeeds when it ends "
+        f"within δr of its goal without a forbidden contact. {over_seeds(runs, start=True)}. δr 0.06 and steps: "
+        "the opening table; failures and where each pick landed: the CSV." + _oracle_reading(runs),
         "",
-        pd.DataFrame(rows).to_markdown(index=False) if rows else "(no rows)",
+        markdown_table(pd.DataFrame(rows)) if rows else "(no rows)",
     ]
-    if "True" in setting_values(runs, "protocol.placement_oracle"):
-        text += ["", "**Diagnosis, not a result**: with `protocol.placement_oracle=True` every released object was "
-                     "set exactly onto its goal before the next stage, so the first object's SR is inflated; read the "
-                     "second object's." + _oracle_reading(runs)]
-    if fail_columns:
-        text += ["", "Why trials ended early (share of trials): `pick` the cup did not hold the object after a "
-                     "picking stage, `collision` a forbidden contact, `horizon` the episode's step limit ran out. "
-                     "`subgoals_capped` (where logged): the share of sub-goals the dynamic planner had not reached "
-                     "when their step cap ran out; the next sub-goal is then planned from where the arm is, as the "
-                     "thesis' cap reads, and the trial goes on.", "",
-                 failures.reset_index().to_markdown(index=False)]
-    stage_columns = sorted(c for c in runs.columns if STAGE_METRIC.fullmatch(c))
-    if stage_columns:
-        stages = runs.groupby(["method", "scenario"])[stage_columns].mean().round(3)
-        text += ["", "Where each picking stage went (mean over seeds): `stageK_right` the share of stage-K starts "
-                     "whose object was the expert's, `stageK_repeat` the share that went back for an object already "
-                     "moved; `stageK_pick_xy_m` / `_pick_z_m` the median horizontal distance and height (m) of the "
-                     "cup's lip from that object's top-face centre where the picking stage ended (the cup grips "
-                     "within the 5 cm face, so within about 0.025 m of its centre); `stageK_subgoal_xy_m` / "
-                     "`_subgoal_z_m` (where logged) the same of the stage's last planned sub-goal, the planner's share "
-                     "of the offset; `stage2_moved_error_m` the median "
-                     "distance of the first object from its goal when the second picking stage started.", "",
-                 stages.reset_index().to_markdown(index=False)]
-    if "planning_ms" in runs:
-        text += ["", f"Sub-goal planning latency: **{runs.planning_ms.mean():.2f} ms** per sub-goal on one CPU core."]
-    return Section("Table 3.1: the two-level planner corrects a human's errors", "\n".join(text), pd.DataFrame(csv),
-                   {"table_3_1.png": _plot_table(pd.DataFrame(csv))} if csv else {})
+    frame = pd.DataFrame(csv)
+    return Section("Table 3.1: the two-level planner corrects a human's errors", "\n".join(text), frame,
+                   {"table_3_1.png": _plot_table(frame)} if csv else {}, results=results_frame(results))
+
+
+def _oracle_reading(runs: pd.DataFrame) -> str:
+    """With ``protocol.placement_oracle`` (each released part set onto its goal before the next stage, where every
+    demonstration's second stage starts): which part c(x) went for at the second stage."""
+    if "True" not in setting_values(runs, "protocol.placement_oracle"):
+        return ""
+    right = spread(runs, "stage2_right")[0]
+    return (" Every released part was set onto its goal before the next stage (`protocol.placement_oracle`): read "
+            f"the second objects; c(x) picked the expert's part at {fmt(right)} of the second stages.")
 
 
 def _plot_table(frame: pd.DataFrame, threshold: str = "0.08"):
@@ -140,92 +135,112 @@ def _plot_table(frame: pd.DataFrame, threshold: str = "0.08"):
     return fig
 
 
+CONTROLLERS = {"ndp": "neural dynamic planner D(Δ)", "ndp_direction": "NDP, direction-only outputs",
+               "actor": "full-observation actor π(r, s)"}
+
+
 def curve_columns(runs: pd.DataFrame, controller: str) -> list[tuple[int, str]]:
     """(step, column) of the logged mean-distance curve ``curve_<controller>_<step>``, sorted by step."""
     pattern = re.compile(rf"curve_{controller}_(\d+)$")
     return sorted((int(m.group(1)), c) for c in runs.columns if (m := pattern.match(c)))
 
 
+def first_below(curve: np.ndarray, steps: np.ndarray, below: float) -> float:
+    """The first step at which ``curve`` (one run's mean ‖Δ‖ per step) is below ``below``; NaN if never."""
+    hit = np.flatnonzero(curve < below)
+    return float(steps[hit[0]]) if len(hit) else float("nan")
+
+
 @register_section("fig_3_10")
 def fig_3_10(runs: pd.DataFrame) -> Section:
-    ref = thesis_results()["ch3"]["text"]
-    steps_logged, converged = setting(runs, "protocol.steps"), setting(runs, "protocol.converged_m")
-    final_column = f"‖Δ‖ after {steps_logged} steps (m)" if steps_logged != NOT_LOGGED else "‖Δ‖ at the last step (m)"
-    reached_column = "reached `protocol.converged_m`" if converged == NOT_LOGGED else f"reached < {converged} m"
-    rows, csv = [], []
+    below = setting_number(runs, "protocol.converged_m")
+    below = thesis_results()["ch3"]["fig_3_10"]["ndp"][0] if below is None else below
+    rows, csv, results = [], [], []
     fig, ax = plt.subplots(figsize=(6, 3.6))
     for controller, label in CONTROLLERS.items():
         columns = curve_columns(runs, controller)
         if not columns:
             continue
         steps = np.array([s for s, _ in columns])
-        values = runs[[c for _, c in columns]].to_numpy(dtype=float)
-        mean, std = np.nanmean(values, 0), np.nanstd(values, 0)
+        values = runs[[c for _, c in columns]].to_numpy(dtype=float)  # one row per run (seed): its mean over trials
+        per_run = pd.DataFrame({"lowest": np.nanmin(values, 1), "at": steps[np.nanargmin(values, 1)],
+                                "first": [first_below(v, steps, below) for v in values], "last": values[:, -1]})
+        mean, std = values.mean(0), values.std(0)
         ax.plot(steps, mean, label=label)
         ax.fill_between(steps, mean - std, mean + std, alpha=0.2)
-        reached = mean_std(runs.assign(all="all"), ["all"], f"reached_{controller}")
-        converge = mean_std(runs.assign(all="all"), ["all"], f"steps_to_converge_{controller}")
-        final = mean_std(runs.assign(all="all"), ["all"], f"final_m_{controller}")
-        get = lambda s: (s.iloc[0]["mean"], s.iloc[0]["std"]) if len(s) else (np.nan, np.nan)  # noqa: E731
-        rows.append({"controller": label, final_column: fmt(*get(final), digits=3),
-                     reached_column: fmt(*get(reached)),
-                     "steps to get there": fmt(*get(converge), digits=1)})
+        rows.append({"controller": label, "lowest mean ‖Δ‖ (m)": fmt(*spread(per_run, "lowest"), digits=3),
+                     "at step": fmt(*spread(per_run, "at"), digits=1),
+                     f"first step below {below:g} m": fmt(*spread(per_run, "first"), digits=1),
+                     f"mean ‖Δ‖ at step {steps[-1]} (m)": fmt(*spread(per_run, "last"), digits=3),
+                     f"trials that got below {below:g} m": fmt(*spread(runs, f"reached_{controller}"))})
         csv += [{"controller": controller, "step": int(s), "mean_m": m, "std_m": d}
                 for s, m, d in zip(steps, mean, std)]
-    ax.axhline(ref["ndp_converges_below_m"], color="black", linestyle="--", linewidth=1,
-               label=f"thesis: NDP < {ref['ndp_converges_below_m']} m in ~{ref['ndp_steps_to_converge']} steps")
+        results += [{"row": controller, "column": "below_m", **_stat(per_run, "lowest")},
+                    {"row": controller, "column": "steps", **_stat(per_run, "first")}]
+        if controller == "actor":
+            lowest = float(per_run.lowest.mean())
+            results.append({"row": controller, "column": "", "met": bool(lowest >= below),
+                            "text": f"lowest mean ‖Δ‖ {lowest:.3f} m (step {per_run['at'].mean():.0f}), "
+                                    f"{per_run['last'].mean():.3f} m at step {steps[-1]}"})
+    ax.axhline(below, color="black", linestyle="--", linewidth=1, label=f"{below:g} m")
     ax.set_xlabel("control step")
-    ax.set_ylabel("|Δ| = |s − r| (m)")
+    ax.set_ylabel("mean |Δ| = |s − r| (m)")
     ax.legend(fontsize=8)
     fig.tight_layout()
     text = [
-        "Distance from the cup's lip to a random sub-goal over "
-        f"{amount(runs, 'protocol.steps', 'control steps')} from the initial pose "
-        f"({amount(runs, 'protocol.trials', 'trials')} per seed), for controllers trained on the same error-correction "
-        f"demonstrations ({amount(runs, 'protocol.demos_per_case', 'per case')}); 'reached' counts trials that got "
-        f"below {keyed(runs, 'protocol.converged_m', 'm')}; curves: mean over trials, {_band(runs)}. Thesis "
-        f"(Fig. 3.10): the NDP gets below "
-        f"{ref['ndp_converges_below_m']} m in about {ref['ndp_steps_to_converge']} steps; the full-observation actor "
-        "does not converge.",
+        "Mean distance from the cup's lip to a random sub-goal over the control steps from the initial pose "
+        f"({amount(runs, 'protocol.trials', 'trials')} per seed), for controllers trained on the same "
+        f"error-correction demonstrations ({amount(runs, 'protocol.demos_per_case', 'per case')}); each seed's "
+        f"curve is its mean over trials, {over_seeds(runs)} ({keyed(runs, 'protocol.converged_m', 'm')}).",
         "",
         markdown_table(pd.DataFrame(rows)) if rows else "(no curves)",
     ]
     return Section("Fig. 3.10: neural dynamic planner vs. full-observation actor", "\n".join(text),
-                   pd.DataFrame(csv), {"fig_3_10.png": fig})
+                   pd.DataFrame(csv), {"fig_3_10.png": fig}, results=results_frame(results))
 
 
-def _band(runs: pd.DataFrame) -> str:
-    """What the band around Fig. 3.10's curves shows: the spread over seeds, none for one seed."""
-    seeds = sorted(runs.seed.unique())
-    return f"one seed ({seeds[0]}): no band" if len(seeds) == 1 else f"band: spread over seeds {seeds}"
+FIRST = "our loop's misses are failed picks: a part it picks ends within both thresholds"
+SECOND = ("the first part, placed a little off its goal where no demonstration starts, misleads c(x) and the "
+          "planner ([placement oracle](#table_3_1_oracle))")
 
 
-def _oracle_reading(runs: pd.DataFrame) -> str:
-    """What the placement oracle shows about the second objects: their SR and c(x)'s stage-2 choice, here, where
-    every demonstration's second stage also started (the first part exactly on its goal)."""
-    # each two-object case lists its objects in the order they are moved: the last one kept is the second
-    second = {scenario: colour for scenario, colour, _ in ROWS if scenario.startswith("two_object")}
-    parts = []
-    for scenario, colour in second.items():
-        part = runs[runs.scenario == scenario]
-        if part.empty or f"sr_{colour}_0.08" not in part or "stage2_right" not in part:
-            continue
-        parts.append(f"{scenario.replace('_', ' ')}: second object ({colour}) SR "
-                     f"{fmt(*spread(part, f'sr_{colour}_0.08'))} at δr 0.08, c(x) right at "
-                     f"{part.stage2_right.mean():.2f} of stage-2 starts")
-    if not parts:
-        return ""
-    return (" This is where every demonstration's second stage starts (the scripted expert places exactly); the "
-            "default runs start it from wherever the first placement ended (their section's `stage2_moved_error_m`). "
-            f"Measured here: {'; '.join(parts)}. A second object that succeeds here and fails in the default rows "
-            "fails because the first placement's error is outside what c(x) and the planner were trained on.")
+def _table_3_1_rows() -> tuple[Row, ...]:
+    rows = []
+    for scenario, colour, (group, key) in ROWS:
+        second = stage_of(scenario, colour) == 2
+        name = f"{'One object' if group == 'one_object' else 'Two objects'}, case {key[4]}: {colour}"
+        rows.append(Row("Table 3.1", name, f"ch3.table_3_1.{group}.{key}",
+                        Pick("table_3_1", result_row("tc_vi", group, key)),
+                        star=Pick("table_3_1", result_row("tc_vi_object", group, key), "tc_vi_object"),
+                        columns=("sr_at_0.08", "sr_at_0.06", "steps_at_0.08", "steps_at_0.06"),
+                        lower=("steps_at_0.08", "steps_at_0.06"),
+                        why=SECOND if second else FIRST))
+    return tuple(rows)
 
+
+TWO_OBJECTS = "error_correction_two_object_case1,error_correction_two_object_case2"
 
 # The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
 PLAN = Plan(
     topic="ch3_motion",
     title="Ch.3 two-level LfD motion planner: error correction (Table 3.1) and the NDP (Fig. 3.10)",
     note="Trials run in our robosuite UR5e error-correction cells, not the thesis' CoppeliaSim UR10; "
-         "demonstrations come from a scripted expert, segmented into stages by PELT change points.",
-    studies=(Study("ch3/table_3_1"), Study("ch3/fig_3_10")),
+         "demonstrations come from a scripted expert, segmented into stages by PELT change points. Steps: one "
+         "count per object, scored at both thresholds.",
+    studies=(
+        Study("ch3/table_3_1"),
+        Study("ch3/fig_3_10"),
+        Study("ch3/table_3_1", ("motion=tc_vi", f"env={TWO_OBJECTS}", "protocol.placement_oracle=True"),
+              key="table_3_1_oracle",
+              title="Table 3.1, the thesis' planner with each placed part set onto its goal",
+              question="Do the thesis' planner's second objects fail because the first part is left off its goal, "
+                       "where no demonstration starts the second stage?"),
+    ),
+    rows=(
+        *_table_3_1_rows(),
+        Row("Fig. 3.10", "Neural dynamic planner D(Δ): lowest mean ‖Δ‖, first step below", "ch3.fig_3_10.ndp",
+            Pick("fig_3_10", "ndp"), higher=False, why="robosuite's UR5e cell, not the thesis' UR10"),
+        Row("Fig. 3.10", "Full-observation actor π(r, s)", "", Pick("fig_3_10", "actor"),
+            claim="its predicted actions remain constant: it does not converge"),
+    ),
 )

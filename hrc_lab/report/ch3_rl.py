@@ -1,7 +1,7 @@
 """Report sections of the Ch.3 guided-RL experiments (Algorithm 1): Fig. 3.13 (hybrid vs full guidance vs pure
-exploration on error correction), Fig. 3.12 (place and stack, NDP guidance vs none) and Fig. 3.9
-(the goal-state positional difference in guided vs unguided exploration). Curves come from the runs' per-epoch
-metric histories (MLflow metrics logged with step = epoch; an epoch is defined in
+exploration on error correction), Fig. 3.12 (place and stack, NDP guidance vs none), Fig. 3.9 (the goal-state
+positional difference in guided vs unguided exploration) and the agent on gymnasium-robotics' Fetch tasks. Curves
+come from the runs' per-epoch metric histories (MLflow metrics logged with step = epoch; an epoch is defined in
 :mod:`hrc_lab.experiments.ch3_rl`)."""
 
 from __future__ import annotations
@@ -13,31 +13,38 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
-from hrc_lab.report.plan import Plan, Study  # noqa: E402
+from hrc_lab.report.headline import results_frame  # noqa: E402
+from hrc_lab.report.plan import Pick, Plan, Row, Study  # noqa: E402
 from hrc_lab.report.runs import (  # noqa: E402
     PARAM_PREFIX,
     amount,
+    default_runs_of,
     histories,
     keyed,
     over_seeds,
+    setting,
     setting_number,
-    setting_values,
     spread,
 )
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import fmt, markdown_table, thesis_results  # noqa: E402
 
 ARMS = {"0": "pure exploration (λ = 0)", "0.7": "hybrid (λ = 0.7)", "1": "full guidance (λ = 1)"}
+LAST_EPOCHS = 3  # "SR, last epochs": the evaluations of a subtask's last 3 epochs pooled (60 episodes at 20 each)
+# the thesis' columns of Fig. 3.13 (thesis_results.yaml ch3.fig_3_13) and Fig. 3.9 by the runs' scenario
+EXPERIMENTS = {"one_object_case1": "one_object", "two_object_case1": "two_objects"}
+# the summaries of a curves section: metric -> its column in the section's table (None: the CSV only)
+SUMMARIES = {"final_policy_success_rate": "final policy SR", "last_epochs_success_rate": f"SR, last {LAST_EPOCHS} "
+             "epochs", "mean_epochs_success_rate": "SR over epochs", "final_grip_rate": "evaluations that held the "
+             "part", "final_collision_rate": "collisions", "final_success_rate": None, "best_success_rate": None,
+             "final_distance": None, "final_moved_rate": None, "final_train_success_rate": None,
+             "final_train_grip_rate": None, "final_train_distance": None, "mean_guidance_rate": None,
+             "mean_env_steps_per_s": None, "mean_updates_per_s": None}
 
 
 def lam_of(runs: pd.DataFrame) -> pd.Series:
     """The guidance ratio of each run as text ("0", "0.7", "1"), from its logged ``rl.lam``."""
     return runs[f"{PARAM_PREFIX}rl.lam"].astype(float).map(lambda v: f"{v:g}")
-
-
-LAST_EPOCHS = 3  # "SR, last epochs": the evaluations of a subtask's last 3 epochs pooled (60 episodes at 20 each)
-# a row's budget: protocol.epochs, rl.learning_rate -> rl.final_learning_rate, protocol.expert_demos
-BUDGET = "epochs (Adam step size), demonstrations"
 
 
 def subtask_sr(runs: pd.DataFrame, history: pd.DataFrame, last: int | None = None) -> pd.Series:
@@ -75,63 +82,53 @@ def by_subtask(values: pd.DataFrame) -> str:
     return " / ".join("–" if pd.isna(v) else f"{v:.2f}" for v in means.loc[:last])
 
 
-def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str, png: str) -> Section:
-    """SR per epoch for every (scenario, lambda, budget): each run light, the mean over seeds bold; the final-epoch
-    table. Runs of another budget (epochs, Adam step size, demonstrations) get their own row and curve, never a
-    shared mean."""
-    runs = runs.assign(lam=lam_of(runs), budget=runs.apply(run_budget, axis=1))
-    history = histories(runs, "success_rate").merge(runs[["run_id", "scenario", "lam", "budget", "seed"]],
-                                                    on="run_id")
+def with_curve_summaries(runs: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """``runs`` with their text λ (``lam``) and the curve's summaries (SR over the last epochs and over every
+    epoch), and the per-epoch SR history of every run."""
+    runs = runs.assign(lam=lam_of(runs))
+    history = histories(runs, "success_rate").merge(runs[["run_id", "scenario", "lam", "seed"]], on="run_id")
     runs = runs.assign(last_epochs_success_rate=runs.run_id.map(epochs_sr(runs, history, LAST_EPOCHS)),
                        mean_epochs_success_rate=runs.run_id.map(epochs_sr(runs, history)))
-    # per subtask, where a plan has several: the final policies' SR and the last epoch's training episodes' SR
-    train_by_subtask = subtask_sr(runs, histories(runs, "train_success_rate"), last=1)
-    train_by_subtask = train_by_subtask.unstack() if len(train_by_subtask) else pd.DataFrame()
-    # the subtasks these runs logged (a column only other runs of the store logged is empty here)
+    return runs, history
+
+
+def curves_section(runs: pd.DataFrame, title: str, intro: str, png: str) -> Section:
+    """SR per epoch for every (scenario, λ): each run light, the mean over seeds bold; one table row per
+    (scenario, λ) with the final policies' SR (by subtask where a plan has several) and the curve's summaries. The
+    CSV is tidy: (scenario, λ, epoch or empty, metric, mean, std, n); its ``results``: one row per λ, one column
+    per experiment (:data:`EXPERIMENTS`), the final policies' SR."""
+    runs, history = with_curve_summaries(runs)
     final_by_subtask = sorted((c for c in runs if c.startswith("final_policy_success_rate_subtask")
                                and runs[c].notna().any()),
                               key=lambda c: int(c.removeprefix("final_policy_success_rate_subtask")))
-    several_subtasks = train_by_subtask.shape[1] > 1 or len(final_by_subtask) > 1
     scenarios = sorted(runs.scenario.unique())
     fig, axes = plt.subplots(1, len(scenarios), figsize=(5 * len(scenarios), 3.4), squeeze=False)
-    rows, csv = [], []
+    rows, csv, results = [], [], []
     for ax, scenario in zip(axes[0], scenarios):
-        arms = runs[runs.scenario == scenario][["lam", "budget"]].drop_duplicates()
-        several = arms.budget.nunique() > 1
-        for k, (lam, budget) in enumerate(sorted(arms.itertuples(index=False), key=lambda a: (float(a[0]), a[1]))):
-            colour = f"C{k}"
-            part = history[(history.scenario == scenario) & (history.lam == lam) & (history.budget == budget)]
+        for k, lam in enumerate(sorted(runs[runs.scenario == scenario].lam.unique(), key=float)):
+            part = history[(history.scenario == scenario) & (history.lam == lam)]
             for _, one in part.groupby("run_id"):
-                ax.plot(one.step, one.value, color=colour, alpha=0.25, linewidth=0.8)
+                ax.plot(one.step, one.value, color=f"C{k}", alpha=0.25, linewidth=0.8)
             mean = part.groupby("step").value.mean()
-            label = ARMS.get(lam, f"λ = {lam}") + (f", {budget}" if several else "")
-            ax.plot(mean.index, mean.values, color=colour, linewidth=2, label=label)
-            csv += [{"scenario": scenario, "lam": lam, "budget": budget, "epoch": int(s), "sr_mean": v}
+            ax.plot(mean.index, mean.values, color=f"C{k}", linewidth=2, label=ARMS.get(lam, f"λ = {lam}"))
+            key = {"scenario": scenario, "lam": lam}
+            csv += [{**key, "epoch": int(s), "metric": "success_rate", "mean": v, "std": None, "n": None}
                     for s, v in mean.items()]
-            done = runs[(runs.scenario == scenario) & (runs.lam == lam) & (runs.budget == budget)]
-            row = {"experiment": scenario.replace("_", " "), "λ": lam, "seeds": len(done),
-                   BUDGET: budget}
-            for metric, label in (("final_success_rate", "final SR"),
-                                  ("final_policy_success_rate", "final policy SR"),
-                                  ("last_epochs_success_rate", f"SR, last {LAST_EPOCHS} epochs"),
-                                  ("best_success_rate", "best SR"),
-                                  ("mean_epochs_success_rate", "SR, mean over epochs"),
-                                  ("final_distance", "final ‖P_obj − P_goal‖ (evaluation)"),
-                                  ("final_grip_rate", "evaluation episodes that held the part"),
-                                  ("final_moved_rate", "evaluation episodes that moved it > 2 cm"),
-                                  ("final_train_success_rate", "final training-episode SR"),
-                                  ("final_train_grip_rate", "training episodes that held the part"),
-                                  ("final_train_moved_rate", "training episodes that moved it > 2 cm"),
-                                  ("final_train_distance", "training episodes' final ‖P_obj − P_goal‖"),
-                                  ("final_collision_rate", "collisions"), ("mean_guidance_rate", "guidance rate"),
-                                  ("mean_env_steps_per_s", "env steps/s"), ("mean_updates_per_s", "updates/s")):
-                digits = 0 if metric.startswith("mean_env") or metric.startswith("mean_up") else 2
-                row[label] = fmt(*spread(done, metric), digits=digits)
-            if several_subtasks:
-                row["final policy SR by subtask"] = by_subtask(done.reindex(columns=final_by_subtask))
-                row["training-episode SR by subtask (last epoch)"] = by_subtask(
-                    train_by_subtask.reindex(done.run_id))
+            done = runs[(runs.scenario == scenario) & (runs.lam == lam)]
+            row = {"experiment": scenario.replace("_", " "), "λ": lam}
+            for metric, label in SUMMARIES.items():
+                mean_, std = spread(done, metric)
+                csv.append({**key, "epoch": None, "metric": metric, "mean": mean_, "std": std,
+                            "n": int(done[metric].notna().sum()) if metric in done else 0})
+                if label:
+                    row[label] = fmt(mean_, std)
+                if label and len(final_by_subtask) > 1 and metric == "final_policy_success_rate":
+                    row["by subtask"] = by_subtask(done.reindex(columns=final_by_subtask))
             rows.append(row)
+            mean_, std = spread(done, "final_policy_success_rate")
+            results.append({"row": lam, "column": EXPERIMENTS.get(scenario, scenario), "mean": mean_, "std": std,
+                            "n": int(done["final_policy_success_rate"].notna().sum())
+                            if "final_policy_success_rate" in done else 0})
         ax.set_title(scenario.replace("_", " "), fontsize=9)
         ax.set_xlabel("epoch (subtasks in sequence)")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
@@ -139,154 +136,91 @@ def curves_section(runs: pd.DataFrame, title: str, intro: str, thesis_line: str,
         ax.set_ylim(-0.02, 1.02)
         ax.legend(fontsize=7)
     fig.tight_layout()
-    text = [intro, "", thesis_line, "", markdown_table(pd.DataFrame(rows)) if rows else "(no runs)"]
-    if any("–" in row.values() for row in rows):
-        text += ["", "–: a metric these runs did not log (they ran before it was added)."]
-    return Section(title, "\n".join(text), pd.DataFrame(csv), {png: fig})
+    text = [intro, "", markdown_table(pd.DataFrame(rows)) if rows else "(no runs)"]
+    return Section(title, "\n".join(text), pd.DataFrame(csv), {png: fig}, results=results_frame(results))
 
 
-def run_budget(run: pd.Series) -> str:
-    """A run's epochs per subtask, Adam step size and scripted-expert demonstrations per subtask, e.g.
-    "10 (0.001 → 0.0001), 300" for ``rl.final_learning_rate``'s linear fall, "4 (0.001), 50" when constant (runs
-    from before the key logged none); "?" for a key the run did not log."""
-    start, final = run.get(f"{PARAM_PREFIX}rl.learning_rate"), run.get(f"{PARAM_PREFIX}rl.final_learning_rate")
-    rate = f"{float(start):g}" if pd.notna(start) else "?"
-    if pd.notna(final) and str(final) != "None":  # MLflow logs a null as the text "None"
-        rate += f" → {float(final):g}"
-    demos = run.get(f"{PARAM_PREFIX}protocol.expert_demos")
-    return f"{run.get(f'{PARAM_PREFIX}protocol.epochs', '?')} ({rate}), {demos if pd.notna(demos) else '?'}"
-
-
-def net_arch(runs: pd.DataFrame) -> str:
-    """The logged hidden layers (params ``rl.net_arch.<i>``) as "64 x 64", or "not logged"."""
-    prefix = f"{PARAM_PREFIX}rl.net_arch."
-    columns = sorted((c for c in runs if c.startswith(prefix)), key=lambda c: int(c.removeprefix(prefix)))
-    if not columns:
-        return "(`rl.net_arch` not logged)"
-    archs = {" x ".join(str(v) for v in row if v == v) for row in runs[columns].itertuples(index=False)}
-    return " or ".join(sorted(archs)) + " units"
-
-
-def inputs_text(runs: pd.DataFrame) -> str:
-    """Whether the runs' networks saw the HER paper's normalised inputs (``rl.normalize_inputs``)."""
-    column = f"{PARAM_PREFIX}rl.normalize_inputs"
-    # runs from before the key existed had raw inputs
-    values = set(runs[column].fillna("False").astype(str)) if column in runs else {"False"}
-    names = {"True": "inputs normalised as in the HER paper", "False": "raw inputs"}
-    return " or ".join(names.get(v, f"rl.normalize_inputs={v}") for v in sorted(values))
-
-
-def reward_text(runs: pd.DataFrame) -> str:
-    """Which reward the runs trained on (``rl.reward``; runs from before the key had Eq. 3.6's)."""
-    column = f"{PARAM_PREFIX}rl.reward"
-    values = set(runs[column].fillna("sparse").astype(str)) if column in runs else {"sparse"}
-    names = {"sparse": "Eq. 3.6's sparse reward (0 within δr, else -1)",
-             "dense": "a dense reward, -Σ ‖P_obj − P_goal‖ (success still Eq. 3.6's within δr)"}
-    return " or ".join(names.get(v, f"rl.reward={v}") for v in sorted(values))
-
-
-GUIDE_PLANNERS = {"tc_vi": "the thesis' sub-goal planner (`tc_vi`)",
-                  "tc_vi_object": "hrc_lab's sub-goal planner (`tc_vi_object`, Table 3.1's best)"}
-GUIDE_OBJECTS = {"classifier": "the object of c(x_1)'s label",
-                 "picking_classifier": "c(x_1)'s most likely picking label",
-                 "ground_truth": "the episode's goal object, not c(x_1) (`rl.stage_labels=ground_truth`, a diagnosis)"}
-GUIDE_ALONE_M = 1e-3  # a delta_g below this with lambda 1 corrects every step: the runs measure the guide alone
+def budget_text(runs: pd.DataFrame) -> str:
+    """The training budget and the final evaluation, read from the runs' params."""
+    return (f"{amount(runs, 'protocol.epochs', 'epochs')} per subtask (subtasks in sequence) of "
+            f"{amount(runs, 'rl.cycles_per_epoch', 'cycles')} × {amount(runs, 'rl.episodes_per_cycle', 'episodes')} "
+            f"of {amount(runs, 'rl.steps_per_subtask', 'steps')}; "
+            f"{amount(runs, 'protocol.expert_demos', 'scripted demonstrations')} per subtask. Final policy SR: each "
+            f"subtask's last agent on {amount(runs, 'protocol.final_eval_episodes', 'held-out scenes')}, mean over "
+            f"subtasks; {over_seeds(runs)}.")
 
 
 def guide_text(runs: pd.DataFrame) -> str:
-    """The guide of the runs: its sub-goal planner (``motion.name``), what named the object a guided episode goes
-    for (``rl.stage_labels``; runs from before the key: c(x_1)'s label), whether its training pairs also start
-    where the closed loop starts a stage (``protocol.stage_starts``), whether it places through the cup's grip
-    (``motion.place_through_grasp``), and, with ``rl.delta_g`` below 1 mm and λ = 1, that every step was the
-    guide's."""
-    planners = setting_values(runs, "motion.name")
-    rules = setting_values(runs, "rl.stage_labels") or ["classifier"]
-    text = ("Guide: " + " or ".join(GUIDE_PLANNERS.get(p, f"`{p}`") for p in planners or ["?"])
-            + ", going for " + " or ".join(GUIDE_OBJECTS.get(r, f"`rl.stage_labels={r}`") for r in rules) + ".")
-    starts = {v for c in runs if c.startswith(f"{PARAM_PREFIX}protocol.stage_starts.") for v in runs[c].dropna()}
-    if "executed" in starts:
-        text += (" Its training pairs start each stage both where the demonstrator's lip was at the change point and "
-                 "where the closed loop starts it (`protocol.stage_starts`, docs/chapters/ch3_motion.md).")
-    if "True" in setting_values(runs, "motion.place_through_grasp"):
-        text += (" Its placing sub-goals move by the lip's offset from the held part's centre, so that the part, "
-                 "not the lip, reaches them (`motion.place_through_grasp`, docs/chapters/ch3_motion.md).")
-    delta_g = setting_number(runs, "rl.delta_g")
-    if delta_g is not None and delta_g < GUIDE_ALONE_M and set(lam_of(runs)) == {"1"}:
-        text += (f" δg = {delta_g:g} m and λ = 1: the guide corrects every step, so these runs measure the guide "
-                 "alone (its episodes are the training-episode columns).")
-    return text
-
-
-def ddpg_text(runs: pd.DataFrame) -> str:
-    """Whether the runs' DDPG had the HER paper's action penalty, random actions and clipped targets
-    (``rl.action_l2``, ``rl.random_eps``, ``rl.clip_return``; :class:`hrc_lab.rl.ddpg.HerDDPG`)."""
-    columns = [f"{PARAM_PREFIX}rl.{key}" for key in ("action_l2", "random_eps", "clip_return")]
-    if not all(c in runs for c in columns):
-        return "stable-baselines3's DDPG without the HER paper's additions"  # runs from before the keys existed
-    texts = set()
-    for l2, eps, clip in runs[columns].itertuples(index=False):
-        if l2 != l2:  # NaN: a run from before the keys existed
-            texts.add("stable-baselines3's DDPG without the HER paper's additions")
-        else:
-            texts.add(f"the HER paper's DDPG (action penalty {float(l2):g}, random actions {float(eps):.0%}, "
-                      f"targets {'clipped' if str(clip) == 'True' else 'not clipped'})")
-    return " or ".join(sorted(texts))
-
-
-def epoch_text(runs: pd.DataFrame) -> str:
-    return (f"An epoch (the HER reference implementation's): {amount(runs, 'rl.cycles_per_epoch', 'cycles')} of "
-            f"{amount(runs, 'rl.episodes_per_cycle', 'training episodes')} of "
-            f"{amount(runs, 'rl.steps_per_subtask', 'control steps')} and "
-            f"{amount(runs, 'rl.gradient_steps', 'gradient steps')}, then "
-            f"{amount(runs, 'protocol.eval_episodes', 'evaluation episodes')} of the deterministic policy on held-out "
-            f"scenes; {amount(runs, 'protocol.epochs', 'epochs')} per subtask (each row's, with its Adam step size and "
-            "the scripted-expert demonstrations per subtask in the agent's demonstration buffer, in its own "
-            "column), subtasks in sequence (thesis: within 550 epochs, read as the reference implementation's). "
-            "Agent: DDPG + HER, hidden layers "
-            f"{net_arch(runs)}, {inputs_text(runs)}, {ddpg_text(runs)}, {reward_text(runs)}; planner trained on "
-            f"{amount(runs, 'protocol.demos', 'expert demonstrations')}. Final SR: the last epoch's evaluation, "
-            "mean over the plan's subtasks; final policy SR: each subtask's last agent on "
-            f"{amount(runs, 'protocol.final_eval_episodes', 'held-out scenes')} that no epoch's evaluation saw, "
-            f"mean over the plan's subtasks; SR, last {LAST_EPOCHS} epochs: the evaluations of each subtask's last "
-            f"{LAST_EPOCHS} epochs pooled; by subtask (plans of several): each subtask's value in the plan's "
-            f"order, mean over seeds; {over_seeds(runs)}.")
+    """Which sub-goal planner guides, and how long it trained."""
+    return f"`{setting(runs, 'motion.name')}` ({amount(runs, 'motion.steps', 'steps')})"
 
 
 @register_section("fig_3_13")
 def fig_3_13(runs: pd.DataFrame) -> Section:
-    ref = thesis_results()["ch3"]["text"]
-    sr = ref["hybrid_guidance_final_sr"]
-    thesis = (f"Thesis (Fig. 3.13): with the hybrid λ = {ref['hybrid_guidance_lambda']} the overall success rates "
-              f"reach {sr[0]} and {sr[1]} within {ref['hybrid_guidance_epochs']} epochs without any collision; full "
-              "guidance (λ = 1) overfits to one behaviour, pure exploration (λ = 0) is sample-inefficient, so hybrid "
-              "beats both.")
-    intro = ("Algorithm 1: DDPG + HER whose actions the two-level planner corrects (δg = "
-             f"{amount(runs, 'rl.delta_g', 'm')}) in a fraction λ of the episodes, the next sub-goal planned after "
-             f"H_lo = {amount(runs, 'rl.subgoal_steps', 'steps')} (or once reached), on the error-correction "
-             f"experiments, δr = {amount(runs, 'rl.delta_r', 'm')}. " + guide_text(runs) + " " + epoch_text(runs))
-    return curves_section(runs, "Fig. 3.13: hybrid guidance vs full guidance vs pure exploration", intro, thesis,
-                          "fig_3_13.png")
+    intro = (f"Algorithm 1: DDPG + HER whose actions the two-level planner ({guide_text(runs)}) corrects beyond "
+             f"δg = {amount(runs, 'rl.delta_g', 'm')} in a fraction λ of the episodes; δr = "
+             f"{amount(runs, 'rl.delta_r', 'm')}; " + budget_text(runs))
+    section = curves_section(runs, "Fig. 3.13: hybrid guidance vs full guidance vs pure exploration", intro,
+                             "fig_3_13.png")
+    section.results = pd.concat([section.results, results_frame([hybrid_claim(section.results)])],
+                                ignore_index=True)
+    return section
+
+
+def hybrid_claim(results: pd.DataFrame) -> dict:
+    """Fig. 3.13's claim, from the final policies' SR per (λ, experiment): λ = 0.7 ends above λ = 0 and λ = 1 in
+    every experiment the runs have."""
+    table = results.pivot(index="row", columns="column", values="mean")
+    lams = [lam for lam in ("0", "0.7", "1") if lam in table.index]
+    text = "; ".join(f"{column.replace('_', ' ')} " + " / ".join(f"{table.loc[lam, column]:.2f}" for lam in lams)
+                     for column in table.columns)
+    met = None
+    if set(lams) == {"0", "0.7", "1"}:
+        met = bool((table.loc["0.7"] > table.loc["0"]).all() and (table.loc["0.7"] > table.loc["1"]).all())
+    return {"row": "claim", "column": "", "text": f"λ {' / '.join(lams)}: {text}", "met": met}
 
 
 @register_section("fig_3_12")
 def fig_3_12(runs: pd.DataFrame) -> Section:
-    intro = ("Place and stack: DDPG + HER guided (λ > 0) by the neural dynamic planner in mode "
-             f"{keyed(runs, 'motion.ndp.mode')} (the thesis' outputs directions only), which corrects an action "
-             f"that would leave the lip more than δg = {amount(runs, 'rl.delta_g', 'm')} from its sub-goal, "
-             f"vs unguided (λ = 0); δr = {amount(runs, 'rl.delta_r', 'm')}. " + guide_text(runs) + " "
-             + epoch_text(runs))
-    thesis = ("Thesis (Fig. 3.12): the DRL agent guided by the direction-only NDP learns both tasks faster than "
-              "unguided DRL (curves only; no final numbers are stated).")
-    return curves_section(runs, "Fig. 3.12: place and stack, NDP guidance vs unguided DRL", intro,
-                          thesis, "fig_3_12.png")
+    intro = (f"Place and stack: DDPG + HER guided (λ = 1) by the neural dynamic planner, mode "
+             f"{keyed(runs, 'motion.ndp.mode')}, which corrects an action that would leave the lip more than δg = "
+             f"{amount(runs, 'rl.delta_g', 'm')} from its sub-goal (sub-goals: {guide_text(runs)}), vs unguided "
+             f"(λ = 0); δr = {amount(runs, 'rl.delta_r', 'm')}; " + budget_text(runs))
+    section = curves_section(runs, "Fig. 3.12: place and stack, NDP guidance vs unguided DRL", intro, "fig_3_12.png")
+    section.results = pd.concat([section.results, results_frame([guided_claim(runs)])], ignore_index=True)
+    return section
+
+
+def guided_claim(runs: pd.DataFrame) -> dict:
+    """Fig. 3.12's claim: the guided agent learns each task faster than the unguided one, read as the SR over
+    every epoch (the area under the learning curve). Runs without an unguided arm (an ablation of the guide) are
+    compared with the default runs' unguided arm of the same store."""
+    runs = with_curve_summaries(runs)[0]
+    unguided = runs[runs.lam == "0"]
+    source = ""
+    if unguided.empty:
+        default = default_runs_of(runs)
+        unguided = with_curve_summaries(default)[0] if not default.empty else default
+        unguided = unguided[unguided.lam == "0"] if not unguided.empty else unguided
+        source = " (unguided: the default study's runs)"
+    parts, met = [], []
+    for scenario in sorted(runs.scenario.unique()):
+        guided = spread(runs[(runs.scenario == scenario) & (runs.lam != "0")], "mean_epochs_success_rate")[0]
+        alone = spread(unguided[unguided.scenario == scenario], "mean_epochs_success_rate")[0] \
+            if not unguided.empty else float("nan")
+        parts.append(f"{scenario} {guided:.2f} / {alone:.2f}")
+        met.append(guided > alone if alone == alone else None)
+    known = [m for m in met if m is not None]
+    return {"row": "claim", "column": "", "met": all(known) if known and len(known) == len(met) else None,
+            "text": "SR over epochs, guided / unguided: " + ", ".join(parts) + source}
 
 
 @register_section("fig_3_9")
 def fig_3_9(runs: pd.DataFrame) -> Section:
-    within = thesis_results()["ch3"]["text"]["guided_exploration_within_m"]
+    within = setting_number(runs, "protocol.within_m")
     fig, axes = plt.subplots(1, max(1, runs.scenario.nunique()), figsize=(5 * max(1, runs.scenario.nunique()), 3.2),
                              squeeze=False)
-    rows, csv = [], []
+    rows, csv, results = [], [], []
     for ax, (scenario, part) in zip(axes[0], runs.groupby("scenario")):
         for k, arm in enumerate(("guided", "unguided")):
             history = histories(part, f"distance_{arm}")
@@ -294,34 +228,35 @@ def fig_3_9(runs: pd.DataFrame) -> Section:
                 ax.plot(one.step, one.value, color=f"C{k}", alpha=0.25, linewidth=0.8)
             mean = history.groupby("step").value.mean()
             ax.plot(mean.index, mean.values, color=f"C{k}", linewidth=2, label=arm)
-            csv += [{"scenario": scenario, "arm": arm, "step": int(s), "distance_m": v} for s, v in mean.items()]
-            rows.append({"task": scenario, "exploration": arm, "seeds": len(part),
-                         "mean ‖Δ‖ (m)": fmt(*spread(part, f"mean_distance_{arm}"), digits=3),
-                         "95th percentile (m)": fmt(*spread(part, f"p95_distance_{arm}"), digits=3),
-                         f"share of steps ≤ {within} m": fmt(*spread(part, f"within_{within:g}_{arm}")),
-                         "mean ‖eef − task goal‖ (m)": fmt(*spread(part, f"mean_goal_distance_{arm}"), digits=3)})
-        ax.axhline(within, color="black", linestyle="--", linewidth=1, label=f"thesis: within {within} m")
+            key = {"scenario": scenario, "arm": arm}
+            csv += [{**key, "step": int(s), "metric": "distance_m", "mean": v, "std": None} for s, v in mean.items()]
+            row = {"task": scenario, "exploration": arm}
+            for metric, label in ((f"mean_distance_{arm}", "mean ‖Δ‖ (m)"), (f"p95_distance_{arm}", "95th "
+                                  "percentile (m)"), (f"within_{within:g}_{arm}", f"share of steps ≤ {within:g} m"),
+                                  (f"mean_goal_distance_{arm}", "mean ‖eef − task goal‖ (m)")):
+                mean_, std = spread(part, metric)
+                row[label] = fmt(mean_, std, digits=2 if metric.startswith("within") else 3)
+                csv.append({**key, "step": None, "metric": metric.removesuffix(f"_{arm}"), "mean": mean_, "std": std})
+            rows.append(row)
+            p95 = f"p95_distance_{arm}"
+            results.append({"row": arm, "column": scenario, **dict(zip(("mean", "std"), spread(part, p95))),
+                            "n": int(part[p95].notna().sum()) if p95 in part else 0})
+        ax.axhline(within, color="black", linestyle="--", linewidth=1, label=f"{within:g} m")
         ax.set_title(scenario, fontsize=9)
         ax.set_xlabel("control step")
         ax.set_ylabel("|Δ| = |sub-goal − end effector| (m)")
         ax.legend(fontsize=7)
     fig.tight_layout()
     text = [
-        f"Exploration with random actions ({amount(runs, 'protocol.episodes', 'episodes')} per arm and seed, the "
-        "same scenes), corrected by Algorithm 1 with the direction-only NDP in every step where the action would "
-        "leave the sub-goal by more than δg (guided), or never (unguided). ‖Δ‖: the goal-state positional "
-        "difference of 3.2.2, the end effector's distance to the two-level planner's current sub-goal (in the "
-        "unguided arm the planner only tracks its sub-goals); the thesis' demonstrations keep it under 0.12 m "
-        "(Fig. 3.8). The last column is the distance to the task's goal instead. Curves: mean over episodes per "
-        "run (light) and over seeds (bold).",
-        "",
-        f"Thesis (Fig. 3.9): the guided exploration keeps the goal-state positional difference within {within} m.",
+        f"Random actions ({amount(runs, 'protocol.episodes', 'episodes')} per arm and seed, the same scenes), "
+        f"corrected by Algorithm 1 with the NDP in mode {keyed(runs, 'motion.ndp.mode')} wherever they would leave "
+        "the sub-goal by more than δg (guided), or never (unguided). ‖Δ‖: the end effector's distance to the "
+        f"two-level planner's current sub-goal (3.2.2); {over_seeds(runs)}.",
         "",
         markdown_table(pd.DataFrame(rows)) if rows else "(no runs)",
     ]
     return Section("Fig. 3.9: the goal-state positional difference in guided vs unguided exploration", "\n".join(text),
-                   pd.DataFrame(csv), {"fig_3_9.png": fig})
-
+                   pd.DataFrame(csv), {"fig_3_9.png": fig}, results=results_frame(results))
 
 
 @register_section("fetch")
@@ -358,7 +293,7 @@ def fetch(runs: pd.DataFrame) -> Section:
         ax.set_xscale("log")
         ax.set_ylim(-0.05, 1.05)
         ax.set_title(task, fontsize=9)
-        ax.set_xlabel("training episodes (50 steps each)")
+        ax.set_xlabel("training episodes")
         ax.set_ylabel("success rate (deterministic policy)")
         ax.legend(fontsize=7, loc="upper left")
         done = runs[runs.scenario == task]
@@ -373,15 +308,11 @@ def fetch(runs: pd.DataFrame) -> Section:
                      if published else "–"})
     fig.tight_layout()
     text = [
-        "The DDPG + HER agent of Table 4.3's DRL and Fig. 3.12 / 3.13 (`rl=ddpg_her`, the HER paper's settings, "
-        f"hidden layers {net_arch(runs)}), trained by the same loop (`hrc_lab/rl/trainer.py`) on gymnasium-robotics' "
-        "Fetch tasks, the tasks the HER reference implementation was published on. An epoch: "
-        f"{amount(runs, 'rl.cycles_per_epoch', 'cycles')} of {amount(runs, 'rl.episodes_per_cycle', 'episodes')} "
-        f"and {amount(runs, 'rl.gradient_steps', 'gradient steps')}, then "
-        f"{amount(runs, 'protocol.eval_episodes', 'evaluation episodes')} of the deterministic policy on held-out "
-        f"goals (success: within 5 cm at the last step); SR, last {LAST_EPOCHS} epochs: their evaluations pooled. "
-        "The published runs used 19 workers and 1,900 episodes per epoch; each seed here ran on one CPU core "
-        "(wall time: the epochs' training and evaluation).",
+        "The agent and loop of Fig. 3.12 / 3.13 (`rl=ddpg_her`, the HER paper's settings) on gymnasium-robotics' "
+        "Fetch tasks, where the HER reference implementation was published (19 workers there, one CPU core per "
+        f"seed here). An epoch: {amount(runs, 'rl.cycles_per_epoch', 'cycles')} of "
+        f"{amount(runs, 'rl.episodes_per_cycle', 'episodes')}, then "
+        f"{amount(runs, 'protocol.eval_episodes', 'evaluation episodes')} on held-out goals; {over_seeds(runs)}.",
         "",
         markdown_table(pd.DataFrame(rows)),
     ]
@@ -389,11 +320,50 @@ def fetch(runs: pd.DataFrame) -> Section:
                    pd.DataFrame(csv), {"fetch.png": fig})
 
 
+HYBRID = f"{thesis_results()['ch3']['text']['hybrid_guidance_lambda']:g}"  # the thesis' λ, a result row of ours
+ONE_OBJECT_HYBRID = ("env=error_correction_one_object_case1", f"rl.lam={HYBRID}")
+
 # The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
 PLAN = Plan(
     topic="ch3_rl",
     title="Ch.3 hybrid hierarchical guided RL (Algorithm 1): DDPG + HER guided by the two-level planner",
     note="Training runs in our robosuite UR5e error-correction cells as a gymnasium goal env, not the "
-         "thesis' CoppeliaSim UR10; the agent is stable-baselines3's DDPG with its HER replay buffer.",
-    studies=(Study("ch3/fig_3_13"), Study("ch3/fig_3_12"), Study("ch3/fig_3_9"), Study("rl/fetch")),
+         "thesis' CoppeliaSim UR10; the agent is DDPG + HER with the HER paper's settings where the thesis gives "
+         "none, and an epoch is the HER reference implementation's.",
+    studies=(
+        Study("ch3/fig_3_13"),
+        Study("ch3/fig_3_12"),
+        Study("ch3/fig_3_9"),
+        Study("ch3/fig_3_13", (*ONE_OBJECT_HYBRID, "rl.steps_per_subtask=40"), key="fig_3_13_40_steps",
+              title="Fig. 3.13 at the thesis' 40 control steps per subtask (one object, λ = 0.7)",
+              question="Does the hybrid reach the thesis' success rate within the thesis' episode length?"),
+        Study("ch3/fig_3_13", (*ONE_OBJECT_HYBRID, "rl.steps_per_subtask=40", "motion=tc_vi",
+                               "motion.place_through_grasp=False", "protocol.stage_starts=[demonstrated]"),
+              key="fig_3_13_tc_vi", title="Fig. 3.13 as written: the thesis' tc_vi guides, 40 steps (one object, "
+                                         "λ = 0.7)",
+              question="Does the thesis' own sub-goal planner, without hrc_lab's additions, guide Algorithm 1 to "
+                       "the thesis' success rate?"),
+        Study("ch3/fig_3_12", ("rl.lam=1", "motion.ndp.mode=direction", "rl.guidance=ndp_direction"),
+              key="fig_3_12_direction", title="Fig. 3.12 with the thesis' direction-only NDP as guide",
+              question="Does the thesis' direction-only NDP also make the guided agent learn place and stack "
+                       "faster than the unguided one?"),
+        Study("rl/fetch"),
+    ),
+    rows=(
+        Row("Fig. 3.13", f"Hybrid guidance (λ = {HYBRID}): final SR", "ch3.fig_3_13.hybrid",
+            Pick("fig_3_13_tc_vi", HYBRID, "the thesis' tc_vi guide and episode length"),
+            star=Pick("fig_3_13", HYBRID, "hrc_lab's tc_vi_object guide, longer episodes"),
+            why="fewer epochs than the thesis'; the episode length ([40 steps](#fig_3_13_40_steps)) and the guide "
+                "([the thesis' tc_vi](#fig_3_13_tc_vi)) each measured"),
+        Row("Fig. 3.13", f"λ = {HYBRID} above λ = 0 and λ = 1", "", None, star=Pick("fig_3_13", "claim"),
+            claim="hybrid guidance ends above full guidance (which overfits) and pure exploration (sample-"
+                  "inefficient)"),
+        Row("Fig. 3.12", "Guided DRL learns place and stack faster than unguided", "",
+            Pick("fig_3_12_direction", "claim", "direction-only NDP"), star=Pick("fig_3_12", "claim", "regression NDP"),
+            claim="the NDP-guided agent learns both tasks faster than unguided DRL",
+            why="the thesis' NDP outputs directions only; hrc_lab's regresses the joint deltas ([direction-only]"
+                "(#fig_3_12_direction))"),
+        Row("Fig. 3.9", "Guided exploration: 95th percentile of ‖Δ‖ (m)", "ch3.fig_3_9.guided_within_m",
+            Pick("fig_3_9", "guided"), higher=False),
+    ),
 )
