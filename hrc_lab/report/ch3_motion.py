@@ -89,7 +89,7 @@ def table_3_1(runs: pd.DataFrame) -> Section:
             csv.append(entry)
         rows.append(row)
     text = [
-        "Per-object success at δr 0.08 m of the two-level planner correcting the human's misplacements "
+        f"Per-object success at δr {THRESHOLDS[0]} m of the two-level planner correcting the human's misplacements "
         f"({amount(runs, 'protocol.trials', 'trials')} per case and seed, "
         f"{amount(runs, 'protocol.demos', 'scripted-expert demonstrations')} per case, at most "
         f"{amount(runs, 'protocol.max_steps_per_subgoal', 'steps')} per sub-goal): an object succeeds when it ends "

@@ -152,7 +152,7 @@ def budget_text(runs: pd.DataFrame) -> str:
 
 def guide_text(runs: pd.DataFrame) -> str:
     """Which sub-goal planner guides, and how long it trained."""
-    return f"`{setting(runs, 'motion.name')}` ({amount(runs, 'motion.steps', 'steps')})"
+    return f"`{setting(runs, 'motion.name')}`, {amount(runs, 'motion.steps', 'training steps')}"
 
 
 @register_section("fig_3_13")
@@ -182,10 +182,9 @@ def hybrid_claim(results: pd.DataFrame) -> dict:
 
 @register_section("fig_3_12")
 def fig_3_12(runs: pd.DataFrame) -> Section:
-    intro = (f"Place and stack: DDPG + HER guided (λ = 1) by the neural dynamic planner, mode "
-             f"{keyed(runs, 'motion.ndp.mode')}, which corrects an action that would leave the lip more than δg = "
-             f"{amount(runs, 'rl.delta_g', 'm')} from its sub-goal (sub-goals: {guide_text(runs)}), vs unguided "
-             f"(λ = 0); δr = {amount(runs, 'rl.delta_r', 'm')}; " + budget_text(runs))
+    intro = (f"Place and stack: DDPG + HER guided (λ = 1) by the NDP in mode {keyed(runs, 'motion.ndp.mode')} "
+             f"towards the sub-goals of {guide_text(runs)} beyond δg = {amount(runs, 'rl.delta_g', 'm')}, vs "
+             f"unguided (λ = 0); δr = {amount(runs, 'rl.delta_r', 'm')}; " + budget_text(runs))
     section = curves_section(runs, "Fig. 3.12: place and stack, NDP guidance vs unguided DRL", intro, "fig_3_12.png")
     section.results = pd.concat([section.results, results_frame([guided_claim(runs)])], ignore_index=True)
     return section
