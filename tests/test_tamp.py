@@ -147,6 +147,8 @@ def test_table_4_3_job_end_to_end(system, overrides, run_job, job_report):
     assert "Table 4.3" in report and "## The thesis' results beside ours" in report
     opening = report.split("## The thesis' results beside ours")[1].split("\n## ")[0]
     assert "| DRL (DDPG + HER) | thesis | 0.41 ± 0.03 |" in opening  # the thesis' row, as published
+    if system in ("ours", "ours_hrc"):  # the caption reads the motion module's demonstrations from the runs
+        assert "motion module from 2 demonstrations, their goal configurations drawn from every slot" in report
 
 
 def test_a_killed_drl_run_resumes_with_its_curve_and_training_time(run_job):

@@ -1,6 +1,9 @@
-"""Report sections of the Ch.4 reasoning experiments: Table 4.1, Fig. 4.7, the practical scenarios, Fig. 4.9."""
+"""Report sections of the Ch.4 reasoning experiments: Table 4.1, Fig. 4.7, the practical scenarios (Sec. 4.4.5,
+Fig. 4.17), Fig. 4.9; and the report's plan."""
 
 from __future__ import annotations
+
+import math
 
 import matplotlib
 
@@ -10,19 +13,11 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from hrc_lab.reasoning.configs import CH4, DEFAULT_POSITION_FRAME, POSITION_FRAMES, REASONERS  # noqa: E402
-from hrc_lab.report.ch4_conditions import conditions_paragraph  # noqa: E402
-from hrc_lab.report.headline import from_stats, results_frame  # noqa: E402
-from hrc_lab.report.plan import Plan, Study  # noqa: E402
+from hrc_lab.report.ch4_conditions import position_spans  # noqa: E402
+from hrc_lab.report.headline import from_stats, results_frame, within  # noqa: E402
+from hrc_lab.report.plan import Pick, Plan, Row, Study  # noqa: E402
 from hrc_lab.report.plots import success_bars  # noqa: E402
-from hrc_lab.report.runs import (  # noqa: E402
-    NOT_LOGGED,
-    amount,
-    default_runs_of,
-    keyed,
-    mean_std,
-    over_seeds,
-    setting,
-)
+from hrc_lab.report.runs import NOT_LOGGED, amount, mean_std, over_seeds, setting, spread  # noqa: E402
 from hrc_lab.report.sections import Section, register_section  # noqa: E402
 from hrc_lab.report.thesis import (  # noqa: E402
     fmt,
@@ -40,14 +35,27 @@ CELLS = ["2of3", "3of3", "3of5", "4of5"]
 METHODS = list(REASONERS.family(CH4))
 LABELS = REASONERS.labels(CH4)
 OURS_FAMILY = list(REASONERS.with_variants("ours"))  # the thesis' module and issue 24's variants of it
-# the methods whose rows the thesis' statements and the per-head diagnostics show: ours, its variants and hrc_lab's
-# own module (issue 45)
-DIAGNOSED = [*OURS_FAMILY, "hrc"]
-SPANS = ("pick_span_x_m", "pick_span_y_m", "goal_span_x_m", "goal_span_y_m")  # logged by every Table 4.1 run
-# The env keys that set Table 4.1's test conditions (where products and goals may be, Sec. 4.4.3's ranges): an
-# ablation whose runs logged other values than the default section's runs is not comparable with its rows
-CONDITION_KEYS = ("env.box_jitter.0", "env.box_jitter.1", "env.pick_jitter.0", "env.pick_jitter.1",
-                  "env.pending_spacing", "env.pending_shuffle", "env.slot_spacing")
+# per-head, per-stage accuracies and where wrong picks point (every evaluation logs them; the sections' CSVs)
+HEADS = {"acc_o_pick": "P_o pick", "acc_o_place": "P_o place", "acc_g_pick": "P_g pick", "acc_g_place": "P_g place"}
+PICK_ERRORS = {"pick_error_area": "the packaging area", "pick_error_packed": "packed products",
+               "pick_error_unselected": "unselected products", "pick_error_other": "other selected products"}
+DIAGNOSTICS = (*HEADS, *PICK_ERRORS)
+TABLE_4_1_EXTRA = ("train_acc_o", "train_acc_g", "latency_ms_batch1", "latency_ms_batched")
+BELOW = 0.95  # a point where ours scores below this is one where it "fails" (the diagnostics' sentence)
+
+
+def _frame_text(frame: str) -> str:
+    """How positions entered the runs' encodings, in words, from :data:`POSITION_FRAMES`."""
+    if frame not in POSITION_FRAMES:
+        return frame  # runs that differ ("table_dm or world_m")
+    origin, scale = POSITION_FRAMES[frame]
+    where = "relative to the table top's centre" if origin == "table" else "in the world frame"
+    return f"{where}, in {'decimetres' if scale == 10 else 'metres' if scale == 1 else f'metres x {scale:g}'}"
+
+
+def _means(part: pd.DataFrame, metrics, pattern: str = "{}") -> dict[str, float]:
+    """Mean over ``part``'s runs of each logged metric ``pattern.format(metric)``, keyed by ``metric``."""
+    return {m: float(part[pattern.format(m)].mean()) for m in metrics if pattern.format(m) in part}
 
 
 @register_section("table_4_1")
@@ -60,274 +68,140 @@ def table_4_1(runs: pd.DataFrame) -> Section:
     for method in methods:
         row = {"method": LABELS.get(method, method)}
         for cell in cells:
-            ours = stats[(stats.method == method) & (stats.cell == cell)]
-            mean, std, n = ours.iloc[0][["mean", "std", "n"]] if len(ours) else (np.nan, np.nan, 0)
+            part = runs[(runs.method == method) & (runs.cell == cell)]
+            mean, std = spread(part, "sr")
             ref = thesis_value(thesis.get(method), thesis["columns"], cell)  # None: a method or cell not run
-            row[cell] = f"{fmt(mean, std)} (thesis {thesis_fmt(*ref) if ref else '–'})"
-            csv.append(
-                {
-                    "method": method,
-                    "cell": cell,
-                    "sr_mean": mean,
-                    "sr_std": std,
-                    "seeds": int(n),
-                    "thesis_mean": ref[0] if ref else None,
-                    "thesis_std": ref[1] if ref else None,
-                }
-            )
+            row[cell] = f"{fmt(mean, std)} ({thesis_fmt(ref[0]) if ref else '–'})"
+            csv.append({"method": method, "cell": cell, "sr_mean": mean, "sr_std": std,
+                        "seeds": int(part.sr.notna().sum()), "thesis_mean": ref[0] if ref else None,
+                        "thesis_std": ref[1] if ref else None,
+                        **_means(part, (*DIAGNOSTICS, *TABLE_4_1_EXTRA))})
         rows.append(row)
-    latency = runs[runs.method == "ours"].groupby("cell")[["latency_ms_batch1", "latency_ms_batched"]].mean()
-    text = _other_conditions(runs) + [
-        "Success rate (all 2n predictions of a trial right), CASE 1, full demo set, random positions; "
-        f"{over_seeds(runs)} (seed k tests on fold k mod n of an n-fold split, n = "
-        f"{keyed(runs, 'protocol.n_folds')}). Thesis values in brackets.",
-        "",
-        pd.DataFrame(rows).to_markdown(index=False),
-    ]
-    if len(latency):
-        ref_ms = thesis_results()["ch4"]["text"]["reasoning_latency_ms"]
-        lat = latency.reindex(thesis_cells(latency.index, CELLS)).round(3).reset_index()
-        lat.columns = ["cell", "ms per decision, batch 1 (median)", "ms per decision, batched"]
-        text += [
-            "",
-            f"Reasoning latency of `ours` on this CPU, graph construction included (thesis: {ref_ms} ms):",
-            "",
-            lat.to_markdown(index=False),
-        ]
-    text += conditions_paragraph(runs, "every method reads goals relative to the box "
-                                  "(`hrc_lab/reasoning/encoding.py`; the goal nodes of GNN [74] and GNN-task sat at "
-                                  "table coordinates in runs before 2026-12-03, where GNN-task could not fit P_g at "
-                                  "placing: docs/chapters/ch4.md).")
-    text += _mlp_paragraph(stats, thesis, runs)
-    return Section(
-        "Table 4.1: reasoning success rates",
-        "\n".join(text),
-        pd.DataFrame(csv),
-        {"table_4_1.png": success_bars(pd.DataFrame(csv), cells, methods, LABELS, "Table 4.1",
-                                       thesis_col="thesis_mean")},
-        results=results_frame(from_stats(stats)),
-    )
-
-
-def _other_conditions(runs: pd.DataFrame) -> list[str]:
-    """For an ablation's runs: the test conditions (:data:`CONDITION_KEYS`, beyond the overrides it was launched with;
-    a changed default's pinned in its title, :mod:`hrc_lab.report.defaults`, is named here too)
-    whose logged values differ from the default section's runs of the same cells, and the position spans both
-    covered, so that no one compares rows run at other ranges; [] when they agree or the store has no default runs."""
-    default = default_runs_of(runs)
-    if default.empty:
-        return []
-    launched = runs["logged_variant_overrides"] if "logged_variant_overrides" in runs else runs["variant_overrides"]
-    own = [item.split("=", 1)[0] + "." for item in " ".join(launched.astype(str)).split()]  # not the pinned ones
-    logged = [k for k in CONDITION_KEYS if not (k + ".").startswith(tuple(own))
-              and NOT_LOGGED not in (setting(runs, k), setting(default, k))]
-    differ = [k for k in logged if setting(runs, k) != setting(default, k)]
-    if not differ:
-        return []
-    values = ", ".join(f"`{k}` {setting(runs, k)} (default section: {setting(default, k)})" for k in differ)
-    return [f"**Not comparable with the default section:** these runs were logged with other test conditions than "
-            f"its runs of the same cells: {values}{_spans_beside(runs, default)}.", ""]
-
-
-def _spans_beside(runs: pd.DataFrame, default: pd.DataFrame) -> str:
-    """ "; positions span ... here, ... in the default section" from the runs' logged spans ("" if not logged)."""
-    def spans(frame: pd.DataFrame) -> str:
-        span = frame[list(SPANS)].max()
-        return (f"picking {span.pick_span_x_m:.2f} × {span.pick_span_y_m:.2f} m, goals {span.goal_span_x_m:.2f} × "
-                f"{span.goal_span_y_m:.2f} m")
-
-    if not all(set(SPANS) <= set(f.dropna(axis=1, how="all")) for f in (runs, default)):
-        return ""
-    return f"; positions span {spans(runs)} here, {spans(default)} in the default section"
-
-
-def _frame_text(frame: str) -> str:
-    """How positions entered the runs' encodings, in words, from :data:`POSITION_FRAMES`."""
-    if frame not in POSITION_FRAMES:
-        return frame  # runs that differ ("table_dm or world_m")
-    origin, scale = POSITION_FRAMES[frame]
-    where = "relative to the table top's centre" if origin == "table" else "in the world frame"
-    return f"{where}, in {'decimetres' if scale == 10 else 'metres' if scale == 1 else f'metres x {scale:g}'}"
-
-
-def _mlp_paragraph(stats: pd.DataFrame, thesis: dict, runs: pd.DataFrame) -> list[str]:
-    """The thesis' one Table 4.1 gap, the MLP below ours at 3of5 and 4of5, against these runs, and what was tried
-    to reproduce it (issue 24)."""
-    cells = [c for c in ("3of5", "4of5") if {"ours", "mlp"} <= set(stats[stats.cell == c].method)]
-    if not cells:
-        return []
-    sr = {(m, c): stats[(stats.method == m) & (stats.cell == c)]["mean"].iloc[0]
-          for m in ("ours", "mlp") for c in cells}
-    theirs = {m: " / ".join(f"{thesis_value(thesis[m], thesis['columns'], c)[0]:.2f}" for c in cells)
-              for m in ("ours", "mlp")}
-    here = {m: " / ".join(f"{sr[m, c]:.2f}" for c in cells) for m in ("ours", "mlp")}
-    below = all(sr["mlp", c] < sr["ours", c] for c in cells)
-    shuffle = {"True": "a random pending cell per episode", "False": "its own pending cell"}.get(
-        setting(runs, "env.pending_shuffle"), "its own pending cell (`env.pending_shuffle` not logged)")
     frame = setting(runs, "reasoning.position_frame")
     frame = DEFAULT_POSITION_FRAME if frame == NOT_LOGGED else frame  # runs from before the key had the default
-    return ["", f"**MLP.** The thesis' MLP falls below ours at {' / '.join(cells)} ({theirs['mlp']} against "
-            f"{theirs['ours']}), which it attributes to variations in object positions. Here, after "
-            f"{setting(runs, 'reasoning.steps')} training steps (`reasoning.steps`), with each product in {shuffle} "
-            f"(`env.pending_shuffle`) and positions {_frame_text(frame)} (`reasoning.position_frame` "
-            f"{frame}): MLP {here['mlp']}, ours {here['ours']}: "
-            + ("the MLP is below ours, as in the thesis." if below else "the thesis' drop is not reproduced.")
-            + " Tried, each an ablation section below when its runs are in the store: shorter training for both "
-            "(`reasoning=ours,mlp reasoning.steps=300,500`), every product in a random cell of the pending area, "
-            "so that a product's picking position spans it (`env.pending_shuffle=true`), one demonstration per "
-            "configuration, so that a test configuration is unseen in training (`protocol.min_demos=5`), and "
-            "positions as the simulator reports them, in the world frame and in metres, or centred on the table "
-            "in metres (`reasoning.position_frame=world_m,table_m`; the thesis does not say how its position "
-            "features are centred or scaled)."]
+    text = (f"CASE 1 success rate (all 2n predictions of a trial right) after {setting(runs, 'reasoning.steps')} "
+            f"training steps (`reasoning.steps`), positions {_frame_text(frame)} (`reasoning.position_frame`); seed "
+            f"k tests fold k of {setting(runs, 'protocol.n_folds')}; {over_seeds(runs)}; thesis in brackets.")
+    spans = position_spans(runs)
+    text += f" {spans[0].upper()}{spans[1:]}." if spans else ""
+    ours = runs[runs.method == "ours"]
+    if "latency_ms_batch1" in ours and ours.latency_ms_batch1.notna().any():
+        text += (f" Ours decides in {ours.latency_ms_batch1.median():.1f} ms at batch 1 (thesis "
+                 f"{thesis_results()['ch4']['text']['reasoning_latency_ms']} ms).")
+    table = pd.DataFrame(csv)
+    figure = success_bars(table, cells, methods, LABELS, "Table 4.1", thesis_col="thesis_mean")
+    return Section("Table 4.1: reasoning success rates", f"{text}\n\n{markdown_table(pd.DataFrame(rows))}", table,
+                   {"table_4_1.png": figure}, results=results_frame(from_stats(stats)))
+
+
+# ---- Fig. 4.7 ------------------------------------------------------------------------------------------------
+
+FULL = 1.0  # λ = 1: trained on every goal configuration (the thesis' CASE 2 statement)
+
+
+def point_row(method: str, case: str, ratio: float) -> str:
+    """The results' row of ``method`` at (``case``, λ = ``ratio``) of Fig. 4.7, e.g. "ours case1 λ=0.6" (its
+    column: the cell)."""
+    return f"{method} {case} λ={ratio:g}"
+
+
+def configurations(cell: str) -> int:
+    """Goal configurations of an "<n>of<m>" cell: mCn selections times n! slot assignments (Fig. 4.6)."""
+    n, m = (int(k) for k in cell.split("of"))
+    return math.comb(m, n) * math.factorial(n)
+
+
+def stated_points() -> list[tuple[str, str, float]]:
+    """(case, cell, λ) of each of the thesis' stated Fig. 4.7 points (Sec. 4.4.1): CASE 1 at its stated λ in its
+    cell, CASE 1 in 4of5 with the stated number of configurations unseen, CASE 2 at λ = 1 in each stated cell."""
+    thesis = thesis_results()["ch4"]["figure_4_7"]
+    unseen = thesis["case1_4of5_unseen_configs_handled"] / configurations("4of5")
+    return [*(("case1", cell, thesis["case1_ours_unseen_lambda"]) for cell in thesis["case1_ours_unseen_sr"]),
+            ("case1", "4of5", round(1 - unseen, 6)),
+            *(("case2", cell, FULL) for cell in thesis["case2_ours_sr_at_lambda_1"])]
 
 
 def _lambda_columns(runs: pd.DataFrame, case: str) -> dict[float, str]:
     prefix = f"{case}_sr_lam"
-    return {float(c[len(prefix) :]): c for c in runs.columns if c.startswith(prefix)}
+    return {float(c[len(prefix):]): c for c in runs.columns if c.startswith(prefix)}
+
+
+def _curves(runs: pd.DataFrame) -> pd.DataFrame:
+    """Every (case, λ, method, cell) of Fig. 4.7: success rate mean, std and seeds, and the mean of every head
+    accuracy, pick error and training-set size the runs logged."""
+    records = []
+    for case in ("case1", "case2"):
+        for ratio, column in sorted(_lambda_columns(runs, case).items()):
+            logged = column.split("_lam", 1)[1]  # the ratio as the run logged it
+            pattern = f"{case}_{{}}_lam{logged}"
+            for (method, cell), part in runs.groupby(["method", "cell"]):
+                mean, std = spread(part, column)
+                records.append({"case": case, "ratio": ratio, "method": method, "cell": cell, "sr_mean": mean,
+                                "sr_std": std, "seeds": int(part[column].notna().sum()),
+                                **_means(part, (*DIAGNOSTICS, "n_train_demos"), pattern)})
+    return pd.DataFrame(records)
+
+
+def _at(frame: pd.DataFrame, case: str, cell: str, ratio: float) -> pd.DataFrame:
+    return frame[(frame.case == case) & (frame.cell == cell) & np.isclose(frame.ratio, ratio)]
+
+
+def _weakest_head(frame: pd.DataFrame, by: str | None) -> str:
+    """One line: over the points (rows of ``frame``) where ``ours`` scores below :data:`BELOW`, per value of the
+    column ``by`` (all together for None), its weakest head (mean accuracy) and where most of its wrong picks point;
+    "" when it fails nowhere or the runs logged no heads."""
+    ours = frame[(frame.method == "ours") & (frame.sr_mean < BELOW)]
+    if ours.empty or not set(DIAGNOSTICS) <= set(ours):
+        return ""
+    parts = []
+    for group, part in ours.groupby(by) if by else [("", ours)]:
+        heads, errors = part[list(HEADS)].mean(), part[list(PICK_ERRORS)].mean()
+        parts.append(f"{str(group).upper() + ' ' if group else ''}({len(part)} points) {HEADS[heads.idxmin()]} "
+                     f"{heads.min():.2f} (others {heads.drop(heads.idxmin()).min():.2f} or more), wrong picks mostly "
+                     f"to {PICK_ERRORS[errors.idxmax()]} ({errors.max():.2f} of picking stages)")
+    return f"Where ours scores below {BELOW}, its weakest head: " + "; ".join(parts) + "."
 
 
 @register_section("fig_4_7")
 def fig_4_7(runs: pd.DataFrame) -> Section:
-    thesis = thesis_results()["ch4"]["figure_4_7"]
-    cells = thesis_cells(runs["cell"].unique(), CELLS)
+    frame = _curves(runs)
     methods = thesis_cells(runs["method"].unique(), METHODS)
-    records = []
-    for case in ("case1", "case2"):
-        for ratio, column in sorted(_lambda_columns(runs, case).items()):
-            for _, r in mean_std(runs, ["method", "cell"], column).iterrows():
-                records.append(
-                    {
-                        "case": case,
-                        "ratio": ratio,
-                        "method": r.method,
-                        "cell": r.cell,
-                        "sr_mean": r["mean"],
-                        "sr_std": r["std"],
-                        "seeds": int(r.n),
-                    }
-                )
-    frame = pd.DataFrame(records)
-    text = [
-        "Success rate over the training ratio λ. CASE 1: unseen goal configurations (selections never trained on; "
-        "at λ = 1 every configuration is seen, with new positions). CASE 2: "
-        f"{amount(runs, 'protocol.case2_tests', 'human-intervention scenarios')} of random configurations. "
-        f"{over_seeds(runs, start=True)}."
-        + (" The rows of ours' variants come from `hrc-lab experiment=ch4/fig_4_7_variants hydra/launcher=joblib`."
-           if any(m.startswith("ours_") for m in methods) else ""),
-        "",
-        "Thesis statements: CASE 1, ours reaches 1.0 on unseen configurations at λ = 0.6 in 3of5 "
-        f"({thesis['case1_ours_unseen_sr_at_lambda_0.6_3of5']}) and in 4of5 handles "
-        f"{thesis['case1_4of5_unseen_configs_handled']} unseen configurations with "
-        f"{thesis['case1_4of5_trained_demos']} trained demonstrations; CASE 2, ours at λ = 1: "
-        f"3of5 {thesis['case2_ours_sr_at_lambda_1']['3of5']}, 4of5 {thesis['case2_ours_sr_at_lambda_1']['4of5']}.",
-    ]
-    text += _thesis_claims(frame, thesis)
-    for case in ("case1", "case2"):
-        for cell in cells:
-            part = frame[(frame.case == case) & (frame.cell == cell)]
-            if part.empty:
-                continue
-            table = part.assign(value=[fmt(m, s) for m, s in zip(part.sr_mean, part.sr_std)])
-            table = table.pivot(index="method", columns="ratio", values="value").reindex(methods)
-            table.index = [LABELS.get(m, m) for m in table.index]
-            table.columns = [f"λ={c:g}" for c in table.columns]
-            text += ["", f"**{case.upper()}, {cell}**", "", markdown_table(table, index=True)]
-    text += _where_ours_fails(runs, cells)
-    return Section(
-        "Fig. 4.7: generalisation over the training ratio",
-        "\n".join(text),
-        frame,
-        {"fig_4_7.png": _lambda_plot(frame, cells, methods, thesis)},
-    )
-
-
-def _thesis_claims(frame: pd.DataFrame, thesis: dict) -> list[str]:
-    """The thesis' three Fig. 4.7 statements beside ``ours``, its variants and ``hrc`` (:data:`DIAGNOSED`) at the
-    same points."""
-    case2 = thesis["case2_ours_sr_at_lambda_1"]
-    claims = [
-        ("CASE 1, 3of5, unseen configurations at λ = 0.6", "case1", "3of5", 0.6,
-         thesis_fmt(thesis["case1_ours_unseen_sr_at_lambda_0.6_3of5"])),
-        (f"CASE 1, 4of5, {thesis['case1_4of5_unseen_configs_handled']} unseen configurations at λ = 0.8", "case1",
-         "4of5", 0.8, f"handled ({thesis['case1_4of5_trained_demos']} demos)"),
-        ("CASE 2, 3of5, λ = 1", "case2", "3of5", 1.0, thesis_fmt(case2["3of5"], digits=3)),
-        ("CASE 2, 4of5, λ = 1", "case2", "4of5", 1.0, thesis_fmt(case2["4of5"], digits=3)),
-    ]
-    methods = [m for m in DIAGNOSED if m in set(frame.method)]
-    rows = []
-    for label, case, cell, ratio, ref in claims:
-        row = {"thesis statement": label, "thesis": ref}
-        for method in methods:
-            hit = frame[(frame.case == case) & (frame.cell == cell) & (frame.method == method)
-                        & np.isclose(frame.ratio, ratio)]
-            row[LABELS[method]] = fmt(hit.sr_mean.iloc[0], hit.sr_std.iloc[0]) if len(hit) else "–"
+    points = [p for p in stated_points() if not _at(frame, *p).empty]
+    rows, results = [], []
+    for method in methods:
+        row = {"method": LABELS.get(method, method)}
+        for case, cell, ratio in points:
+            hit = _at(frame[frame.method == method], case, cell, ratio)
+            row[f"{case.upper()[:4]} {case[-1]} {cell} λ={ratio:g}"] = (
+                fmt(hit.sr_mean.iloc[0], hit.sr_std.iloc[0]) if len(hit) else "–")
+            if len(hit):
+                one = hit.iloc[0]
+                results.append({"row": point_row(method, case, ratio), "column": cell, "mean": one.sr_mean,
+                                "std": one.sr_std, "n": one.seeds})
+                if case == "case1" and cell == "4of5":  # the thesis' "handles ... unseen configurations"
+                    demos = f", {one.n_train_demos:.0f} demonstrations" if "n_train_demos" in one else ""
+                    results.append({"row": point_row(method, case, ratio), "column": "",
+                                    "text": f"{fmt(one.sr_mean, one.sr_std)}{demos}",
+                                    "met": within(one.sr_mean, math.nan, 1.0, None, True)})
         rows.append(row)
-    return ["", markdown_table(pd.DataFrame(rows))] if methods else []
+    text = ("Success rate at the thesis' stated points of the training ratio λ (every point, with the per-head "
+            "accuracies: the CSV and the figure). CASE 1 tests unseen goal configurations (all seen at λ = 1); "
+            f"CASE 2 {amount(runs, 'protocol.case2_tests', 'human-intervention scenarios')}. "
+            f"{over_seeds(runs, start=True)}. Variants of ours: `experiment=ch4/fig_4_7_variants`.")
+    lines = [text, "", markdown_table(pd.DataFrame(rows))]
+    weakest = _weakest_head(frame, "case")
+    lines += ["", weakest] if weakest else []
+    cells = thesis_cells(runs["cell"].unique(), CELLS)
+    return Section("Fig. 4.7: generalisation over the training ratio", "\n".join(lines), frame,
+                   {"fig_4_7.png": _lambda_plot(frame, cells, methods)}, results=results_frame(results))
 
 
-HEADS = {"acc_o_pick": "P_o pick", "acc_o_place": "P_o place", "acc_g_pick": "P_g pick", "acc_g_place": "P_g place"}
-PICK_ERRORS = {"pick_error_area": "→ area", "pick_error_packed": "→ packed", "pick_error_unselected": "→ unselected",
-               "pick_error_other": "→ other selected"}
-
-
-def _where_ours_fails(runs: pd.DataFrame, cells: list[str]) -> list[str]:
-    """The diagnostics of ``ours`` at every (case, cell, λ) of Fig. 4.7."""
-    points = []
-    for case in ("case1", "case2"):
-        for cell in cells:
-            for ratio, column in sorted(_lambda_columns(runs, case).items()):
-                logged = column.split("_lam", 1)[1]  # the ratio as the run logged it
-                labels = {"case": case.upper(), "cell": cell, "λ": f"λ={ratio:g}"}
-                points.append((labels, runs.cell == cell, f"{case}_{{}}_lam{logged}"))
-    return _diagnostics(runs, points, "n_train_demos")
-
-
-def _diagnostics(runs: pd.DataFrame, points: list, demos: str | None = None) -> list[str]:
-    """Per-head, per-stage accuracies of ``ours``, its variants and ``hrc`` (mean over seeds) and where their wrong
-    picks point, one row per method and point ``(labels, row mask, metric pattern with {} for the metric)``; then the
-    head and the error kind that account for most of ``ours``' failures, read from the same numbers. Rows whose
-    metrics were not logged are left out."""
-    records = []
-    for method in [m for m in DIAGNOSED if m in set(runs.method)]:
-        for labels, mask, pattern in points:
-            part = runs[(runs.method == method) & mask]
-            keys = [*HEADS, *PICK_ERRORS, "sr"] + ([demos] if demos else [])
-            if part.empty or any(pattern.format(key) not in part for key in keys):
-                continue
-            record = {"method": LABELS[method], **labels, "SR": part[pattern.format("sr")].mean()}
-            if demos:
-                record["train demos"] = round(part[pattern.format(demos)].mean())
-            records.append(record | {label: part[pattern.format(key)].mean()
-                                     for key, label in {**HEADS, **PICK_ERRORS}.items()})
-    if not records:
-        return ["", "Per-head accuracies: not logged by these runs (logged since the per-head diagnostics)."]
-    table = pd.DataFrame(records)
-    lines = [
-        "",
-        "**Where `ours` goes wrong.** Accuracy of each head at each stage over all test stages, and where the wrong "
-        "picks point (share of picking stages: the packaging area, i.e. a placing stage assumed; a packed product; "
-        "an unselected product; another selected product), mean over seeds. A trial fails if any of its 2n "
-        "predictions is wrong.",
-        "",
-        table.to_markdown(index=False, floatfmt=".2f"),
-    ]
-    failing = table[(table.method == LABELS["ours"]) & (table.SR < 0.95)]
-    groups = failing.groupby("case") if "case" in failing else [("", failing)]
-    for case, part in groups:
-        if part.empty:
-            continue
-        heads = part[list(HEADS.values())].mean()
-        errors = part[list(PICK_ERRORS.values())].mean()
-        lines += [
-            "",
-            f"Over the {len(part)} {case + ' ' if case else ''}points where Ours scores below 0.95, its weakest head "
-            f"is {heads.idxmin()} (mean accuracy {heads.min():.2f}; the others {heads.drop(heads.idxmin()).min():.2f} "
-            f"or more), and wrong picks point mostly {errors.idxmax()} ({errors.max():.2f} of picking stages).",
-        ]
-    return lines
-
-
-def _lambda_plot(frame: pd.DataFrame, cells, methods, thesis):
+def _lambda_plot(frame: pd.DataFrame, cells, methods):
+    """Fig. 4.7's curves, one panel per (case, cell), the thesis' stated values of ours as black stars."""
+    thesis = thesis_results()["ch4"]["figure_4_7"]
+    stars = {("case1", cell): (thesis["case1_ours_unseen_lambda"], sr)
+             for cell, sr in thesis["case1_ours_unseen_sr"].items()}
+    stars |= {("case2", cell): (FULL, sr) for cell, sr in thesis["case2_ours_sr_at_lambda_1"].items()}
     fig, axes = plt.subplots(2, len(cells), figsize=(4.2 * len(cells), 6.4), squeeze=False, sharey=True)
     for row, case in enumerate(("case1", "case2")):
         for col, cell in enumerate(cells):
@@ -336,81 +210,78 @@ def _lambda_plot(frame: pd.DataFrame, cells, methods, thesis):
                 part = frame[(frame.case == case) & (frame.cell == cell) & (frame.method == method)]
                 part = part.sort_values("ratio")
                 variant = method in OURS_FAMILY[1:]  # issue 24's variants of ours: dashed, beside the thesis' rows
-                ax.errorbar(part.ratio, part.sr_mean, yerr=part.sr_std, marker="o", capsize=2,
-                            linestyle="--" if variant else "-", label=LABELS.get(method, method))
-            if case == "case2" and cell in thesis["case2_ours_sr_at_lambda_1"]:
-                ax.scatter(
-                    [1.0],
-                    [thesis["case2_ours_sr_at_lambda_1"][cell]],
-                    marker="*",
-                    s=160,
-                    color="black",
-                    zorder=4,
-                    label="thesis (ours)",
-                )
-            if case == "case1" and cell == "3of5":
-                ax.scatter(
-                    [0.6],
-                    [thesis["case1_ours_unseen_sr_at_lambda_0.6_3of5"]],
-                    marker="*",
-                    s=160,
-                    color="black",
-                    zorder=4,
-                    label="thesis (ours)",
-                )
+                ax.errorbar(part.ratio, part.sr_mean, yerr=None if one_seed() else part.sr_std, marker="o",
+                            capsize=2, linestyle="--" if variant else "-", label=LABELS.get(method, method))
+            if (case, cell) in stars:
+                ax.scatter(*([v] for v in stars[case, cell]), marker="*", s=160, color="black", zorder=4,
+                           label="thesis (ours)")
             ax.set_title(f"{case.upper()} {cell}")
             ax.set_xlabel("training ratio λ")
             ax.set_ylim(-0.03, 1.05)
             ax.grid(alpha=0.3)
-    axes[0, 0].set_ylabel("success rate")
-    axes[1, 0].set_ylabel("success rate")
+    for row in range(2):
+        axes[row, 0].set_ylabel("success rate")
     legend = {label: handle for ax in axes.flat for handle, label in zip(*ax.get_legend_handles_labels())}
     fig.legend(legend.values(), legend.keys(), loc="lower center", ncol=4, fontsize=8)  # below the panels
     fig.tight_layout(rect=(0, 0.09, 1, 1))
     return fig
 
 
+# ---- Sec. 4.4.5 ----------------------------------------------------------------------------------------------
+
+MISSING = "missing"  # the results' row suffix of the missing-products scenario (with partial demonstrations)
+
+
+def scenario_row(method: str, scenario: str) -> str:
+    """The results' row of ``method`` in a practical scenario: "ours missing" (column ""), "ours 3of5" (Fig. 4.17's
+    test size; columns "case1", "case2")."""
+    return f"{method} {scenario}"
+
+
 @register_section("practical")
 def practical(runs: pd.DataFrame) -> Section:
     thesis = thesis_results()["ch4"]["practical"]
     generalise = thesis["train_2of5_generalise"]
-    max_missing = setting(runs, "protocol.max_missing")
-    missing = f"1-{max_missing}" if max_missing != NOT_LOGGED else "1 to `protocol.max_missing` (not logged)"
     partial = amount(runs, "protocol.partial_demos", "partial demos")
-    sizes = setting(runs, "protocol.train_selected"), setting(runs, "env.n_objects")
-    trained = f"{sizes[0]}of{sizes[1]}" if NOT_LOGGED not in sizes else "? (`protocol.train_selected` not logged)"
-    cell = " / ".join(sorted(runs.cell.unique()))  # the cell the missing-product scenarios run in
-    scenarios = {
-        "missing_without_partial_sr": (f"{cell}, {missing} missing, no partial demos", None),
-        "missing_sr": (f"{cell}, {missing} missing, +{partial}", thesis["missing_items_3of5_sr"]),
-        "order_size_3of5_case1_sr": (f"train {trained} -> test 3of5, CASE 1", generalise["3of5"]["case1"]),
-        "order_size_3of5_case2_sr": (f"train {trained} -> test 3of5, CASE 2", generalise["3of5"]["case2"]),
-        "order_size_4of5_case1_sr": (f"train {trained} -> test 4of5, CASE 1", generalise["4of5"]["case1"]),
-        "order_size_4of5_case2_sr": (f"train {trained} -> test 4of5, CASE 2", generalise["4of5"]["case2"]),
-    }
+    trained = f"{setting(runs, 'protocol.train_selected')}of{setting(runs, 'env.n_objects')}"
+    # metric -> (column label, thesis' value of ours, results row suffix, results column)
+    scenarios = {"missing_without_partial_sr": ("missing, no partial demos", None, None, None),
+                 "missing_sr": (f"missing, +{partial}", thesis["missing_items_3of5_sr"], MISSING, "")}
+    for size in generalise:
+        for case in ("case1", "case2"):
+            scenarios[f"order_size_{size}_{case}_sr"] = (f"→ {size}, CASE {case[-1]}", generalise[size][case],
+                                                         size, case)
     methods = thesis_cells(runs["method"].unique(), METHODS)
-    rows, records = [], []
-    for metric, (label, ref) in scenarios.items():
-        row = {"scenario": label, "thesis (ours)": thesis_fmt(ref)}
-        for method in methods:
-            stats = mean_std(runs[runs.method == method], ["method"], metric)
-            mean, std = (stats.iloc[0]["mean"], stats.iloc[0]["std"]) if len(stats) else (np.nan, np.nan)
-            row[LABELS.get(method, method)] = fmt(mean, std) if len(stats) else "n/a"
-            records.append({"scenario": metric, "method": method, "sr_mean": mean, "sr_std": std, "thesis": ref})
+    rows = [{"method": "thesis (ours)", **{label: thesis_fmt(ref) for label, ref, _, _ in scenarios.values()}}]
+    records, results = [], []
+    for method in methods:
+        part = runs[runs.method == method]
+        row = {"method": LABELS.get(method, method)}
+        for metric, (label, ref, suffix, column) in scenarios.items():
+            mean, std = spread(part, metric)
+            seeds = int(part[metric].notna().sum()) if metric in part else 0
+            row[label] = fmt(mean, std) if seeds else "n/a"
+            pattern = metric.removesuffix("sr") + "{}"
+            records.append({"scenario": metric, "method": method, "sr_mean": mean, "sr_std": std, "seeds": seeds,
+                            "thesis": ref, **_means(part, DIAGNOSTICS, pattern)})
+            if seeds and suffix is not None:
+                results.append({"row": scenario_row(method, suffix), "column": column, "mean": mean, "std": std,
+                                "n": seeds})
         rows.append(row)
-    text = [
-        f"Practical scenarios of 4.4.5. Missing products: {amount(runs, 'protocol.missing_tests', 'test scenarios')} "
-        f"with {missing} products absent at the start and restocked once the rest is packed; MLP and RF need a fixed "
-        f"input size (n/a). Varying order size: one model trained on {trained} (box of "
-        f"{amount(runs, 'protocol.slots', 'slots')}), {amount(runs, 'protocol.test_tests', 'tests')} per size and "
-        f"case. {over_seeds(runs, start=True)}.",
-        "",
-        markdown_table(pd.DataFrame(rows)),
-    ]
-    everywhere = pd.Series(True, index=runs.index)
-    text += _diagnostics(runs, [({"scenario": label}, everywhere, metric.removesuffix("sr") + "{}")
-                                for metric, (label, _) in scenarios.items()])
-    return Section("Practical scenarios (4.4.5)", "\n".join(text), pd.DataFrame(records), {})
+    max_missing = setting(runs, "protocol.max_missing")
+    text = (f"Missing products: {amount(runs, 'protocol.missing_tests', 'tests')} in "
+            f"{' / '.join(sorted(runs.cell.unique()))} with 1-{max_missing} products absent at the start, restocked "
+            f"once the rest is packed (MLP and RF need a fixed input size: n/a). Order size (Fig. 4.17): one model "
+            f"trained on {trained}, {amount(runs, 'protocol.test_tests', 'tests')} per size and case. "
+            f"{over_seeds(runs, start=True)}; per-head accuracies: the CSV.")
+    records = pd.DataFrame(records)
+    weakest = _weakest_head(records.dropna(subset=["sr_mean"]), None)
+    return Section("Practical scenarios (4.4.5): missing products, order size (Fig. 4.17)",
+                   f"{text}\n\n{markdown_table(pd.DataFrame(rows))}" + (f"\n\n{weakest}" if weakest else ""),
+                   records, results=results_frame(results))
+
+
+# ---- Fig. 4.9 ------------------------------------------------------------------------------------------------
 
 
 def _separable(frame: pd.DataFrame) -> str:
@@ -425,10 +296,13 @@ def _separable(frame: pd.DataFrame) -> str:
         (clear if first.mean - second.mean > max(first.std, second.std) else unclear).append(where)
     parts = []
     if clear:
-        parts.append(f"It leads the next feature by more than their seed spread in {', '.join(clear)}")
+        parts.append(f"leads the next by more than their seed spread in {', '.join(clear)}")
     if unclear:
-        parts.append(f"by less than the spread, so no single most important feature, in {', '.join(unclear)}")
-    return "; ".join(parts) + "." if parts else ""
+        parts.append(f"by less than the spread in {', '.join(unclear)}")
+    return "The largest share " + "; ".join(parts) + "."
+
+
+EXPECTED = {"picking": "I", "placing": "z"}  # the thesis' most important feature per stage (Sec. 4.4.1)
 
 
 @register_section("fig_4_9")
@@ -439,23 +313,39 @@ def fig_4_9(runs: pd.DataFrame) -> Section:
     features = [f for f in ("x", "y", "z", "I") if f in set(frame.feature)]
     frame["value"] = [fmt(m, s) for m, s in zip(frame["mean"], frame["std"])]
     table = frame.pivot(index=["case", "stage"], columns="feature", values="value").reindex(columns=features)
-    top = frame.loc[frame.groupby(["case", "stage"])["mean"].idxmax()].set_index(["case", "stage"])
-    ranked = ", ".join(f"{case} {stage}: {row.feature}" for (case, stage), row in top.iterrows())
+    table = table.fillna("–")  # a feature a stage logged no share for
+    top = frame.loc[frame.groupby(["case", "stage"])["mean"].idxmax()].set_index(["case", "stage"])["feature"]
+    cases = sorted(frame.case.unique())
+    shown = "; ".join(f"{stage}: {' / '.join(top.get((case, stage), '–') for case in cases)}"
+                      for stage in EXPECTED)
+    met = all(top.get((case, stage)) == feature for case in cases for stage, feature in EXPECTED.items())
+    seed = runs.sort_values("seed").iloc[0]
     text = [
-        "GNNExplainer feature masks summed over nodes and normalised (share of importance per node feature) for the "
-        "P_o output of `ours`; the thesis finds I decisive at picking and z important at placing, with the same "
-        f"masks in both cases. {over_seeds(runs, start=True)}.",
+        "GNNExplainer feature masks of `ours`' P_o output, summed over nodes and normalised (each feature's share). "
+        f"{over_seeds(runs, start=True)}; the masks below: seed {seed.seed}.",
         "",
         markdown_table(table.reset_index()),
         "",
-        f"Largest mean share: {ranked}. {_separable(frame)}".rstrip(),
+        f"Largest share per stage ({' / '.join(c.upper() for c in cases)}): {shown}. {_separable(frame)}".rstrip(),
     ]
-    shown = runs.sort_values("seed").iloc[0]
-    text += ["", f"Masks below: seed {shown.seed}."]
-    artifacts = {f"fig_4_9_case{c}.png": (shown.run_id, f"plots/fig_4_9_case{c}.png") for c in (1, 2)}
+    artifacts = {f"fig_4_9_case{c}.png": (seed.run_id, f"plots/fig_4_9_case{c}.png") for c in (1, 2)}
     csv = frame[["case", "stage", "feature", "mean", "std"]].rename(columns={"mean": "importance_mean",
                                                                          "std": "importance_std"})
-    return Section("Fig. 4.9: GNNExplainer masks", "\n".join(text), csv, {}, artifacts)
+    results = [{"row": "ours", "column": "", "text": f"largest share {shown}", "met": met}]
+    return Section("Fig. 4.9: GNNExplainer masks", "\n".join(text), csv, {}, artifacts,
+                   results=results_frame(results))
+
+
+# ---- the plan ------------------------------------------------------------------------------------------------
+
+_FIG_4_7 = thesis_results()["ch4"]["figure_4_7"]
+_CASE1, _UNSEEN, _CASE2 = stated_points()[0], stated_points()[1], stated_points()[2]
+P_O = "P_o at picking, the mean readout's, fails"  # what the Fig. 4.7 and Fig. 4.17 sections' last lines show
+
+
+def _ours(study: str, row) -> dict:
+    """The as-written and ★ picks of a reasoning row: ``ours`` and hrc_lab's module (``hrc``)."""
+    return {"as_written": Pick(study, row("ours")), "star": Pick(study, row("hrc"), "hrc_lab's module")}
 
 
 # The report's plan: its studies (hrc-lab-reproduce runs them) and the thesis rows it opens with.
@@ -463,7 +353,48 @@ PLAN = Plan(
     topic="ch4_reasoning",
     title="Ch.4 reasoning module (GraphSAGE importance ranking) vs. baselines",
     note="Our scenes come from the simulator-independent package-to-order spec (`hrc_lab/env/robot/spec.py`), "
-         "not the thesis' CoppeliaSim scenes.",
-    studies=(Study("ch4/table_4_1"), Study("ch4/fig_4_7", also=("ch4/fig_4_7_variants",)),
-             Study("ch4/practical"), Study("ch4/fig_4_9")),
+         "not the thesis' CoppeliaSim scenes; ★ is hrc_lab's reasoning module (`reasoning=hrc`, docs/chapters/ch4.md).",
+    studies=(
+        Study("ch4/table_4_1"),
+        Study("ch4/fig_4_7", also=("ch4/fig_4_7_variants",)),
+        Study("ch4/practical"),
+        Study("ch4/fig_4_9"),
+        Study("ch4/table_4_1", ("env=package_to_order_3of5,package_to_order_4of5", "reasoning=ours,mlp",
+                                "reasoning.position_frame=world_m", "reasoning.steps=3000"),
+              key="mlp_world_frame", title="Table 4.1's MLP and ours on positions in the world frame, in metres",
+              question="Does the thesis' MLP gap at 3of5 and 4of5 appear when positions are not centred?"),
+        Study("ch4/table_4_1", ("env=package_to_order_3of5,package_to_order_4of5", "reasoning=gnn_task",
+                                "reasoning.steps=4000"),
+              key="gnn_task_steps", title="Table 4.1's GNN-task with a longer training",
+              question="Is GNN-task's drop at 3of5 and 4of5 a plateau of its training within the shared budget?"),
+    ),
+    rows=(
+        Row("Table 4.1", "Ours", "ch4.table_4_1.ours", **_ours("table_4_1", lambda m: m)),
+        Row("Table 4.1", "GNN [74]", "ch4.table_4_1.gnn", Pick("table_4_1", "gnn")),
+        Row("Table 4.1", "GNN-task", "ch4.table_4_1.gnn_task", Pick("table_4_1", "gnn_task"),
+            why="P_g at placing has not fit its training stages in the shared budget "
+                "([longer training](#gnn_task_steps))"),
+        Row("Table 4.1", "MLP", "ch4.table_4_1.mlp", Pick("table_4_1", "mlp"),
+            why="our positions are centred on the table ([uncentred](#mlp_world_frame))"),
+        Row("Table 4.1", "RF", "ch4.table_4_1.rf", Pick("table_4_1", "rf")),
+        Row("Fig. 4.7", f"Ours, CASE 1, unseen configurations, λ = {_CASE1[2]:g}",
+            "ch4.figure_4_7.case1_ours_unseen_sr",
+            **_ours("fig_4_7", lambda m: point_row(m, _CASE1[0], _CASE1[2])),
+            why=f"{P_O} on unseen selections ([variants](#fig_4_7))"),
+        Row("Fig. 4.7", f"Ours, CASE 2, λ = {_CASE2[2]:g}", "ch4.figure_4_7.case2_ours_sr_at_lambda_1",
+            **_ours("fig_4_7", lambda m: point_row(m, _CASE2[0], _CASE2[2])),
+            why=f"{P_O}: it predicts a placing stage after a human's packing"),
+        Row("Fig. 4.7", f"Ours, CASE 1, 4of5, λ = {_UNSEEN[2]:g}", "", claim=(
+            f"handles {_FIG_4_7['case1_4of5_unseen_configs_handled']} unseen goal configurations with "
+            f"{_FIG_4_7['case1_4of5_trained_demos']} trained demonstrations"),
+            **_ours("fig_4_7", lambda m: point_row(m, _UNSEEN[0], _UNSEEN[2])), why=f"{P_O} on unseen selections"),
+        Row("Sec. 4.4.5", "Ours, products missing, retrained with partial demos",
+            "ch4.practical.missing_items_3of5_sr", **_ours("practical", lambda m: scenario_row(m, MISSING))),
+        *(Row("Fig. 4.17", f"Ours, trained 2of5, tested {size}", f"ch4.practical.train_2of5_generalise.{size}",
+              **_ours("practical", lambda m, size=size: scenario_row(m, size)),
+              why=f"{P_O} on orders larger than trained")
+          for size in thesis_results()["ch4"]["practical"]["train_2of5_generalise"]),
+        Row("Fig. 4.9", "Feature masks", "", claim="I decisive at picking, z at placing, the same masks in CASE 1 "
+            "and CASE 2", as_written=Pick("fig_4_9", "ours")),
+    ),
 )
