@@ -5,9 +5,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from hrc_lab.config import ConfigError
-from hrc_lab.report.build import ABLATION_MARK, moved_headings
 from hrc_lab.report.defaults import PARAM_PREFIX, pin_changed_defaults, pinned_settings
-from hrc_lab.report.sections import Section
 from hrc_lab.run_naming import variant_of
 from hrc_lab.tracking import MAX_PARAM, changed_settings, compose_today, composed_today, schema_defaults
 
@@ -69,9 +67,6 @@ def test_pinned_runs_move_to_the_variant_their_settings_name():
     assert pinned.loc[1, "variant_overrides"] == "motion.steps=2000"
     assert pinned.loc[2, "variant_overrides"] == "motion.steps=2000 protocol.dagger_rounds=2"
     assert list(pinned["logged_variant_overrides"]) == ["", "", "protocol.dagger_rounds=2"]
-    # the previous report's sections of the moved runs are not kept beside their new ones
-    sections = [("default", "", Section("Table 3.1", "", pd.DataFrame()))]
-    assert moved_headings(pinned, sections) == {"## Table 3.1", f"## Table 3.1{ABLATION_MARK}protocol.dagger_rounds=2"}
 
 
 def test_a_protocol_key_read_only_by_other_methods_is_not_pinned():
@@ -92,8 +87,6 @@ def test_an_override_that_today_s_defaults_give_leaves_the_variant():
     moved = pin_changed_defaults(frame)
     assert list(moved["variant"]) == ["default", variant_of(["protocol.dagger_rounds=2"], [])[0]]
     assert list(moved["variant_overrides"]) == ["", "protocol.dagger_rounds=2"]
-    sections = [("default", "", Section("Table 3.1", "", pd.DataFrame()))]
-    assert f"## Table 3.1{ABLATION_MARK}motion.steps=6000" in moved_headings(moved, sections)
 
 
 def test_a_changed_nested_list_is_pinned_whole():
