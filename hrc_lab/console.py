@@ -30,8 +30,8 @@ def quiet_third_party() -> None:
 
 # A metric is a headline when its name is one of these (or one of these then "_<cell>"): what the report's thesis
 # tables show. A job's log line names at most MAX_SHOWN of them; the rest are in MLflow.
-HEADLINE = re.compile(r"^(sr|oa|ia|r2)(_.+)?$|^(success_rate|final_policy_success_rate|expert_success_rate|ad_acc|"
-                      r"sg_acc|sc_acc|detector_map|acc_o|acc_g)$")
+HEADLINE = re.compile(r"^(sr|oa|ia|r2)(_.+)?$|^acc_\d+$|^(success_rate|final_policy_success_rate|"
+                      r"expert_success_rate|ad_acc|sg_acc|sc_acc|detector_map|acc_o|acc_g)$")
 MAX_SHOWN = 6
 
 
