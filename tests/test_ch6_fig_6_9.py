@@ -1,7 +1,6 @@
 """Fig. 6.9 (thesis 6.4.2): data sets of k object types, the two stages' image-based accuracies, the config's
-checks, a tiny run logging both per k, and its report section with the plot."""
+checks and a tiny run logging both per k (its report section: tests/test_report_ch6_grasp.py)."""
 
-import re
 from types import SimpleNamespace
 
 import numpy as np
@@ -13,7 +12,6 @@ from hrc_lab.data.vmrd import AnnotatedScene
 from hrc_lab.env.clutter.spec import ClutterObject, ClutterScene, ClutterSpec
 from hrc_lab.experiments.ch6_grasp import component_accuracy, fewer_types, type_subsets
 from hrc_lab.registry import ConfigError
-from hrc_lab.report.sections import SECTIONS, load_sections
 
 
 def test_fewer_types_keeps_the_most_numerous_part_types():
@@ -88,23 +86,3 @@ def test_fig_6_9_logs_both_stages_per_number_of_types(run_job):
     assert job.metrics["types1_objects"] == 3  # part a alone: 3 parts a scene
     logged = {a.path for a in job.client.list_artifacts(job.run.info.run_id, "tables")}
     assert "tables/fig_6_9.csv" in logged
-
-
-def test_fig_6_9_section_prints_both_stages_per_k_and_plots_them():
-    load_sections()
-    metrics = {f"types{k}_{name}": [value - 0.1 * k, value - 0.1 * k + 0.02]
-               for k in (1, 2, 3) for name, value in (("grasp_ia", 0.9), ("solution_ia", 0.8), ("ia", 0.7),
-                                                       ("grasp_ia_n3", 0.95), ("solution_ia_n3", 0.85))}
-    metrics |= {f"types{k}_{name}": [value] * 2 for k in (1, 2, 3)
-                for name, value in (("test_images", 50.0), ("objects", 3.0 + k), ("train_grasp_acc", 1.0))}
-    runs = pd.DataFrame({"method": ["gnn_att"] * 2, "seed": [0, 1], "cell": ["clutter"] * 2, "run_id": ["r0", "r1"],
-                         "written_by_hrc_lab": [1.0] * 2, "param.protocol.train_images": ["427"] * 2,
-                         "param.protocol.test_images": ["50"] * 2, **metrics})
-    section = SECTIONS["fig_6_9"](runs)
-    assert re.search(r"\|\s+2 \|\s+50 \|\s+5 \| 0.710 ± 0.010\s+\| 0.610 ± 0.010\s+\| 0.510 ± 0.010",
-                     section.markdown)  # k = 2: GNN, LSTM_Att, Table 6.3's IA
-    assert re.search(r"\|\s+3 \| 0.660 ± 0.010\s+\| 0.560 ± 0.010", section.markdown)  # 3-object images
-    assert "On the test images of 3 objects only" in section.markdown and "only the k part types" in section.markdown
-    assert set(section.figures) == {"fig_6_9.png"}
-    assert section.table.groupby("stage").types.apply(list).to_dict() == {"grasp_ia": [1, 2, 3],
-                                                                         "solution_ia": [1, 2, 3]}

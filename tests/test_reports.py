@@ -8,7 +8,6 @@ import re
 import time
 from pathlib import Path
 
-import pandas as pd
 import pytest
 from mlflow.tracking import MlflowClient
 from omegaconf import OmegaConf
@@ -18,8 +17,7 @@ from hrc_lab.report.build import build_report
 from hrc_lab.report.callbacks import SweepSummary
 from hrc_lab.report.headline import within
 from hrc_lab.report.plan import Pick, Plan, Row, Study
-from hrc_lab.report.runs import fetch_runs, setting, variants_of
-from hrc_lab.report.sections import SECTIONS, load_sections
+from hrc_lab.report.runs import fetch_runs, variants_of
 from hrc_lab.run_naming import variant_of
 from hrc_lab.tracking import RunTracker
 
@@ -224,151 +222,6 @@ def test_a_failing_sweep_summary_makes_the_sweep_exit_non_zero(store, tmp_path, 
     assert exit_info.value.code == 1
     err = capsys.readouterr().err
     assert "a column the section expects" in err and "its report: `hrc-lab-report ch4_reasoning`" in err
-
-
-def test_prose_reads_settings_from_params_or_says_not_logged():
-    load_sections()
-    runs = pd.DataFrame({"method": ["gnn_att", "gnn_att"], "seed": [0, 1], "cell": ["clutter"] * 2,
-                         "param.grasp.detector.context_scale": ["1.8", "1.8"]})
-    assert "enlarged 1.8× (`grasp.detector.context_scale`" in SECTIONS["table_6_1"](runs).markdown
-    off = SECTIONS["table_6_1"](runs.assign(**{"param.grasp.detector.context_scale": "0.0"})).markdown
-    assert "no enlarged-box feature" in off and "1.8" not in off
-    old = SECTIONS["table_6_1"](runs.drop(columns="param.grasp.detector.context_scale")).markdown
-    assert "not logged" in old and "1.8" not in old
-    assert setting(runs, "protocol.n_folds") == "not logged"
-
-
-def test_table_6_1_section_decomposes_the_object_accuracy():
-    load_sections()
-    seeds = [0, 1]
-    runs = pd.DataFrame({
-        "method": ["gnn_att"] * 2, "seed": seeds, "cell": ["clutter"] * 2, "run_id": ["r0", "r1"],
-        "train_grasp_acc": [0.99, 1.0], "train_part_grasp_acc": [0.95, 0.96], "train_detected": [0.97, 0.97],
-        **{f"{stem}_{k}": [0.8, 0.9] for stem in ("oa", "fit_acc", "detected") for k in (1, 2, 3)},
-        "oa_type_a": [0.6, 0.7], "oa_type_b": [0.9, 0.9], "oa_type_c": [1.0, 1.0],
-        "geometry_blockers_within_filter": [0.97] * 2, "geometry_blocker_distance_median": [0.08] * 2,
-        "geometry_blocker_distance_max": [0.2] * 2, "geometry_pairs_within_filter": [0.3] * 2,
-        "geometry_pair_distance_median": [0.25] * 2, "geometry_neighbours_within_filter": [1.5] * 2,
-        "geometry_blocker_weight_ratio": [2.5] * 2,
-    })
-    section = SECTIONS["table_6_1"](runs)
-    assert "| GNN_Att (ours) | 0.995 ± 0.005 (1.000)" in section.markdown  # Train_Acc: the solver's fit
-    assert "test: OA of part a" in section.markdown and "0.650 ± 0.050" in section.markdown
-    assert "OA about 0.81 (Sec. 6.4.1)" in section.markdown
-    assert "97% lie within 0.16" in section.markdown and "2.50× the uniform weight" in section.markdown
-    assert section.artifacts == {"geometry.png": ("r0", "figures/geometry.png")}
-    older = SECTIONS["table_6_1"](runs.drop(columns=["train_detected", "geometry_blockers_within_filter"]))
-    assert "Where the object accuracy is lost" not in older.markdown and "lie within" not in older.markdown
-
-
-def test_table_6_1_default_section_plots_the_oa_over_the_training_set_size(monkeypatch, tmp_path):
-    """The default section reads the runs whose only override is ``protocol.train_images`` beside its own, per
-    method run at two sizes or more; a run with another override too stays out."""
-    from hrc_lab.report import ch6_grasp
-
-    load_sections()
-
-    def run(method, seed, images, variant="default", overrides=""):
-        return {"method": method, "seed": seed, "cell": "clutter", "run_id": f"{method}{seed}{images}{variant}",
-                "variant": variant, "variant_overrides": overrides, "experiment": "ch6/table_6_1",
-                "param.logger.tracking_uri": f"sqlite:///{tmp_path}/x.db", "param.protocol.train_images": str(images),
-                **{f"oa_{k}": images / 5000 + k / 100 + seed / 50 for k in (1, 2, 3)}, "train_grasp_acc": 1.0}
-
-    every = pd.DataFrame([run("gnn_att", 0, 427), run("gnn_att", 1, 427), run("gcn_att", 0, 427),
-                          run("gnn_att", 0, 1708, "v1", "protocol.train_images=1708"),
-                          run("gnn_att", 1, 1708, "v1", "protocol.train_images=1708"),
-                          run("gcn_att", 0, 1708, "v2", "protocol.train_images=1708 grasp.steps=10")])
-    monkeypatch.setattr(ch6_grasp, "fetch_runs", lambda uri, experiment, variant: every)
-    monkeypatch.setattr(ch6_grasp, "finished_runs", lambda uri, experiment: every)
-    section = SECTIONS["table_6_1"](every[every.variant == "default"])
-    assert "training_images.png" in section.figures
-    table = section.markdown.split("Over the number of training images")[1]
-    assert ("| GNN_Att (ours) | 0.105 ± 0.010 / 0.115 ± 0.010 / 0.125 ± 0.010 | 0.362 ± 0.010 / 0.372 ± 0.010 / "
-            "0.382 ± 0.010 |" in re.sub(r" +", " ", table))
-    assert "GCN_Att" not in table  # its 1708-image run has another override too
-    ablation = SECTIONS["table_6_1"](every[every.variant == "v1"])
-    assert "Over the number of training images" not in ablation.markdown
-
-
-def test_table_6_1_default_section_measures_how_far_other_cpu_kernels_move_a_cell(monkeypatch, tmp_path):
-    """Default runs of one method and seed under two ``cpu_kernels`` settings (no tag: before the pinning) are
-    paired; a seed run under one setting only stays out, and without a pair the section says nothing."""
-    from hrc_lab.report import ch6_grasp
-
-    load_sections()
-
-    def run(seed, kernels, oa):
-        return {"method": "gnn_att", "seed": seed, "cell": "clutter", "run_id": f"{seed}{kernels}",
-                "variant": "default", "variant_overrides": "", "experiment": "ch6/table_6_1",
-                "param.logger.tracking_uri": f"sqlite:///{tmp_path}/x.db", "cpu_kernels": kernels, "cpu": "CPU X",
-                "cpu_capability": "AVX2" if kernels else "AVX512",
-                **{f"oa_{k}": oa + k / 100 for k in (1, 2, 3)}, "train_grasp_acc": 1.0}
-
-    every = pd.DataFrame([run(0, "PINNED", 0.80), run(1, "PINNED", 0.84),  # newest first
-                          run(0, None, 0.78), run(1, None, 0.88), run(2, None, 0.90)])
-    monkeypatch.setattr(ch6_grasp, "fetch_runs", lambda uri, experiment, variant: every.iloc[:0])
-    monkeypatch.setattr(ch6_grasp, "finished_runs", lambda uri, experiment: every)
-    markdown = re.sub(r" +", " ", SECTIONS["table_6_1"](every.iloc[:2]).markdown)
-    assert "the 6 cells (seed x request size) moved by 0.030 on average, at most 0.040" in markdown
-    assert "widest paths of their CPU, here AVX512), same config and seeds, on CPU X." in markdown
-    # means 0.83 / 0.84 per size (std 0.02 / 0.05): 0.01 within the larger std in each of the 3 cells
-    assert "Of the 3 cells of the table (a method's mean over seeds at one request size), 0 moved" in markdown
-    assert "the means moved by 0.010 on average, at most 0.010." in markdown
-    assert f"| GNN_Att (ours) | {ch6_grasp.KERNELS_BEFORE} | 0, 1 | 0.840 ± 0.050 |" in markdown
-    assert "| GNN_Att (ours) | PINNED | 0, 1 | 0.830 ± 0.020 |" in markdown
-    monkeypatch.setattr(ch6_grasp, "finished_runs", lambda uri, experiment: every.iloc[:2])
-    assert "other CPU kernels" not in SECTIONS["table_6_1"](every.iloc[:2]).markdown
-
-
-def test_table_6_2_section_gives_the_failure_causes_and_answer_lengths(monkeypatch):
-    from hrc_lab.report import ch6_grasp
-
-    load_sections()
-    runs = pd.DataFrame({"method": ["gnn_att"] * 2, "seed": [0, 1], "cell": ["clutter"] * 2, "run_id": ["r0", "r1"],
-                         "acc_3": [0.7, 0.8], "fail_detection_3": [0.1, 0.0], "fail_graspability_3": [0.2, 0.1],
-                         "fail_solution_3": [0.0, 0.1], "fail_other_3": [0.0, 0.0]})
-    cases = pd.DataFrame({"objects": [3, 3, 3, 3], "correct": [True, True, False, True], "iterations": [1, 1, 2, 1],
-                          "help": [False, False, False, True], "rule_requests": [1, 2, 2, 1]})
-    monkeypatch.setattr(ch6_grasp, "run_tables", lambda runs, name: cases if name == "table_6_2_single" else None)
-    markdown = SECTIONS["table_6_2_single"](runs).markdown
-    assert "| graspability    | 0.150 ± 0.050" in markdown
-    assert "acted on in the robosuite cell) is in [ch6_robot.md](ch6_robot.md)" in markdown
-    assert re.search(r"\|\s+3 \|\s+4 \|\s+1.25 \|\s+0.75 \|\s+0.25 \|\s+1.5 \|\s+0.5 \|", markdown)
-    assert "Why answers are wrong" not in SECTIONS["table_6_2_single"](runs.drop(columns="fail_detection_3")).markdown
-
-
-def test_table_6_2_robot_section_gives_causes_and_times():
-    load_sections()
-    runs = pd.DataFrame({"method": ["gnn_att"] * 2, "seed": [0, 1], "cell": ["clutter"] * 2, "run_id": ["r0", "r1"],
-                         "acc_3": [0.6, 0.8], "fail_slip_3": [0.1, 0.0], "fail_collision_3": [0.3, 0.2],
-                         "fail_detection_3": [0.0, 0.0], "render_ms": [30.0, 32.0], "detection_ms": [50.0, 52.0],
-                         "reasoning_ms": [6.0, 6.0], "motion_ms": [4000.0, 4200.0],
-                         "perception_reasoning_ms": [86.0, 90.0], "param.protocol.cases": ["30"] * 2,
-                         "video_scene": [float("nan"), 2.0], "param.protocol.video_objects": ["5"] * 2})
-    section = SECTIONS["table_6_2_robot"](runs)
-    markdown = section.markdown
-    assert "seed 1, scene 2 with 5 parts" in markdown  # the one run that filmed an episode
-    assert section.artifacts["robot_episode.mp4"] == ("r1", "videos/robot_episode.mp4")
-    assert "| robot grasping (ours, GNN_Att) | 0.700 ± 0.100 (0.91) |" in markdown
-    assert re.search(r"\| detection\s+\| 0.000 ± 0.000 \|\n\| slip\s+\| 0.050 ± 0.050 \|\n\| collision", markdown)
-    assert "together 88.0 ± 2.0 ms per iteration" in markdown and "30 scenes per part count" in markdown
-
-
-def test_table_6_3_section_says_whose_data_it_read():
-    load_sections()
-    runs = pd.DataFrame({"method": ["gnn_att", "gnn_att", "gvmrn_rf"], "seed": [0, 1, 0], "cell": ["clutter"] * 3,
-                         "run_id": ["r0", "r1", "r2"], "ia": [0.5, 0.6, 0.3], "ia_3": [0.7, 0.8, 0.4],
-                         "oa": [0.8, 0.9, 0.6], "written_by_hrc_lab": [1.0] * 3,
-                         "param.protocol.train_images": ["427"] * 3, "param.protocol.test_images": ["50"] * 3})
-    markdown = SECTIONS["table_6_3"](runs).markdown
-    assert re.search(r"\| GNN_Att \(ours\) \| 0.550 ± 0.050 \|\s+0.62\s+\| 0.750 ± 0.050\s+\| 0.850 ± 0.050", markdown)
-    assert "our 427 trainval and 50 test rendered clutter scenes" in markdown and "not comparable" in markdown
-    theirs = SECTIONS["table_6_3"](runs.assign(written_by_hrc_lab=0.0, classes=31.0,
-                                               **{"param.env.vmrd_root": "/data/VMRD", "param.env.image_size": "320"}))
-    assert "the data set at `/data/VMRD`" in theirs.markdown and "not comparable" not in theirs.markdown
-    assert "these runs read 31 classes from the data set's annotations" in theirs.markdown
-    assert "letterboxed to 320 px (`env.image_size`) square" in theirs.markdown
-    assert theirs.title == "Table 6.3: image-based accuracy (a data set in VMRD's layout)"
 
 
 def markdown_tables(text: str) -> list[tuple[int, str, str]]:
