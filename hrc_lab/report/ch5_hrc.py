@@ -120,6 +120,9 @@ PLAN = Plan(
         Study("ch5/hrc_session", ("protocol.recovery=True",), key="recovery", star=True,
               title="★ The HRC loop with the robot and hrc_lab's recovery from contradicting placements"),
     ),
-    rows=table_5_2_rows("Table 5.2 with the robot in the loop", "hrc_session", {}, star="recovery",
-                        star_label="recovery"),
+    rows=table_5_2_rows("Table 5.2 with the robot in the loop", "hrc_session",
+                        {1: "our detector on windows of generated sessions",
+                         3: "a wrong step stays on the bracket for the steps after it ([★ recovery](#recovery)); "
+                            "few sessions per seed"},
+                        star="recovery", star_label="recovery"),
 )
