@@ -178,11 +178,12 @@ def test_the_opening_table_puts_the_thesis_row_beside_ours_and_the_scoreboard_ga
 
 
 def test_within_the_spread_reads_the_larger_spread_and_the_direction():
-    assert within(0.91, 0.0, 0.92, 0.012, higher=True)  # 0.01 short, inside the thesis' spread 0.012
-    assert not within(0.90, 0.0, 0.92, 0.012, higher=True)  # 0.02 short
-    assert within(0.89, 0.04, 0.92, 0.012, higher=True)  # our spread over seeds covers it
-    assert within(0.99, 0.0, 0.92, 0.012, higher=True)  # above
-    assert within(40.0, 0.0, 41.0, 2.0, higher=False) and not within(45.0, 1.0, 41.0, 2.0, higher=False)
+    assert within(0.91, 0.0, 3, 0.92, 0.012, higher=True)  # 0.01 short, inside the thesis' spread 0.012
+    assert not within(0.90, 0.0, 3, 0.92, 0.012, higher=True)  # 0.02 short
+    assert within(0.89, 0.06, 3, 0.92, 0.012, higher=True)  # our mean's standard error 0.035 covers it
+    assert not within(0.80, 0.16, 3, 0.92, 0.012, higher=True)  # a wide scatter over 3 seeds does not
+    assert within(0.99, 0.0, 3, 0.92, 0.012, higher=True)  # above
+    assert within(40.0, 0.0, 3, 41.0, 2.0, higher=False) and not within(45.0, 1.0, 3, 41.0, 2.0, higher=False)
 
 
 def test_sweep_summary_reads_its_own_sweep_and_variant(store, tmp_path):

@@ -182,7 +182,7 @@ def fig_4_7(runs: pd.DataFrame) -> Section:
                     demos = f", {one.n_train_demos:.0f} demonstrations" if "n_train_demos" in one else ""
                     results.append({"row": point_row(method, case, ratio), "column": "",
                                     "text": f"{fmt(one.sr_mean, one.sr_std)}{demos}",
-                                    "met": within(one.sr_mean, math.nan, 1.0, None, True)})
+                                    "met": within(one.sr_mean, math.nan, 1, 1.0, None, True)})
         rows.append(row)
     text = ("Success rate at the thesis' stated points of the training ratio λ (every point, with the per-head "
             "accuracies: the CSV and the figure). CASE 1 tests unseen goal configurations (all seen at λ = 1); "

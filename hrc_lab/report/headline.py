@@ -36,8 +36,12 @@ def from_stats(stats: pd.DataFrame, row: str = "method", column: str = "cell") -
             for _, r in stats.iterrows()]
 
 
-def within(mean: float, std: float, thesis: float, thesis_std: float | None, higher: bool) -> bool:
-    tolerance = max(FLOOR, 0.0 if thesis_std is None else thesis_std, 0.0 if std != std else std)
+def within(mean: float, std: float, n: int, thesis: float, thesis_std: float | None, higher: bool) -> bool:
+    """Whether our mean over ``n`` seeds is within the thesis' spread of its value or above (below when lower is
+    better): the tolerance is the larger of the thesis' std, the standard error of our mean (std / sqrt(n), so that
+    3 seeds that scatter widely do not make any mean "within") and :data:`FLOOR`."""
+    standard_error = 0.0 if std != std else std / math.sqrt(max(n, 1))
+    tolerance = max(FLOOR, 0.0 if thesis_std is None else thesis_std, standard_error)
     return mean >= thesis - tolerance if higher else mean <= thesis + tolerance
 
 
@@ -59,7 +63,7 @@ def _ours(row: Row, pick: Pick | None, kind: str, results: dict[str, pd.DataFram
             if row.claim:
                 record["met"] = None if pd.isna(value.get("met")) else bool(value.get("met"))
             elif ref is not None and value["mean"] == value["mean"]:
-                record["met"] = within(value["mean"], value["std"], ref, ref_std,
+                record["met"] = within(value["mean"], value["std"], record["n"], ref, ref_std,
                                        row.higher and column not in row.lower)
         records.append(record)
     return records
@@ -123,8 +127,8 @@ def opening_tables(plan: Plan, rows: pd.DataFrame, links: bool = True) -> list[s
     that includes the tables has no such anchors: there they are plain text)."""
     if rows.empty:
         return []
-    lines = ["hrc_lab: mean ± std over 3 seeds unless the row says; ✓ within the thesis' spread or above "
-             "(`hrc_lab/report/headline.py`); ★ hrc_lab's method.", ""]
+    lines = ["hrc_lab: mean ± std over 3 seeds unless the row says; ✓ within the thesis' spread (or our mean's "
+             "standard error) or above (`hrc_lab/report/headline.py`); ★ hrc_lab's method.", ""]
     for table, part in rows.groupby("table", sort=False):
         columns = list(dict.fromkeys(part["column"]))
         header = ["row", "", *[column or "value" for column in columns], "why ours differs"]
@@ -182,8 +186,8 @@ def write_scoreboard(reports: Path) -> Path:
     lines = ["# Scoreboard: the thesis' headline results and ours", "",
              "Generated with the reports (`hrc-lab-report <topic>` rewrites it from every report's "
              f"`<topic>/{ROWS_FILE}`). Values: means over seeds; the report's opening table has the spreads. "
-             "Within: every column within the thesis' spread or above, as written, or only with ★ hrc_lab's "
-             "method.", ""]
+             "Within: every column within the thesis' spread (or our mean's standard error) or above, as written, or "
+             "only with ★ hrc_lab's method.", ""]
     if rows.empty:
         path.write_text("\n".join(lines + ["No report built yet."]) + "\n")
         return path
