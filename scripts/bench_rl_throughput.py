@@ -188,7 +188,8 @@ class UpdateRow(Row):
         agent = self.agent
         batches = [agent._sample(agent.batch_size) for _ in range(self.updates)]
         sample = agent._sample
-        agent._sample = lambda batch_size, drawn=iter(batches): next(drawn)
+        drawn = iter(batches)
+        agent._sample = lambda batch_size: next(drawn)
         try:
             return timed(lambda: (agent.train(self.updates, agent.batch_size), self.updates)[1])
         finally:
