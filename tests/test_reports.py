@@ -8,6 +8,7 @@ import re
 import time
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from mlflow.tracking import MlflowClient
 from omegaconf import OmegaConf
@@ -244,3 +245,18 @@ def test_every_committed_report_table_has_as_many_header_cells_as_columns(report
     text = (ROOT / "reports" / report).read_text()
     for line, header, delimiter in markdown_tables(text):
         assert cells(header) == cells(delimiter), f"{report}:{line}: {header[:120]}"
+
+
+def test_plans_md_gives_each_reports_studies_runs_commit_and_wall_time(tmp_path):
+    from hrc_lab.report.times import PLAN_FILE, write_plan_times
+
+    for topic, rows in {"ch9_a": [("one", 6, "abc1234567", 0.5), ("two", 0, "", float("nan"))],
+                        "ch9_b": [("three", 3, "abc1234567", 0.25)]}.items():
+        (tmp_path / topic).mkdir()
+        pd.DataFrame([{"topic": topic, "study": s, "title": s, "runs": n, "commit": c, "hours": h, "cpu": "CPU X"}
+                      for s, n, c, h in rows]).to_csv(tmp_path / topic / PLAN_FILE, index=False)
+    text = write_plan_times(tmp_path).read_text()
+    assert "| ch9_a | 1 of 2 | 6 | abc1234567 | 0.50 |" in text
+    assert "| all | 2 of 3 | 9 |  | 0.75 |" in text
+    assert "| ch9_a | two | 0 | not run yet |" in text and "| ch9_b | three | 3 | 15 |" in text
+    assert "CPU: CPU X." in text

@@ -17,6 +17,7 @@ from hrc_lab.report.plan import Plan, Study
 from hrc_lab.report.plans import PLANS, plan_of
 from hrc_lab.report.runs import finished_runs, newest_runs, sweeps_line, variants_of
 from hrc_lab.report.sections import SECTIONS, Section, load_sections
+from hrc_lab.report.times import PLAN_FILE, study_record, write_plan_times
 from hrc_lab.tracking import resolve_tracking_uri
 
 
@@ -109,7 +110,8 @@ def sweep_hours(frame: pd.DataFrame) -> float:
 
 def build_topic(topic: str, tracking_uri: str, out_dir: Path) -> Path:
     """Write ``<out_dir>/<topic>.md``, its tables, plots and thesis rows from the runs of its plan's studies in the
-    store at ``tracking_uri``, then the scoreboard ``<out_dir>/README.md`` from every report's thesis rows there."""
+    store at ``tracking_uri``, then the scoreboard ``<out_dir>/README.md`` from every report's thesis rows there and
+    ``<out_dir>/plans.md`` (:mod:`hrc_lab.report.times`) from every report's study costs."""
     if topic not in PLANS:
         raise SystemExit(f"hrc-lab-report: unknown report '{topic}'; choose one of {sorted(PLANS)}")
     return build_report(plan_of(topic), tracking_uri, out_dir)
@@ -125,9 +127,11 @@ def build_report(plan: Plan, tracking_uri: str, out_dir: Path) -> Path:
     if folder.is_dir():
         shutil.rmtree(folder)  # files of studies that no longer exist go with them
     parts, results, runs_read, missing = [], {}, [], []
+    costs = []
     for study in plan.studies:
         runs = study_runs(every, study)
         runs_read.append(runs)
+        costs.append(study_record(plan, study, runs, sweep_hours(runs) if not runs.empty else float("nan")))
         if runs.empty:
             missing.append(study)
             title = study.title or study.table
@@ -139,6 +143,7 @@ def build_report(plan: Plan, tracking_uri: str, out_dir: Path) -> Path:
     rows = thesis_rows(plan, results)
     folder.mkdir(parents=True, exist_ok=True)
     rows.to_csv(folder / ROWS_FILE, index=False)
+    pd.DataFrame(costs).to_csv(folder / PLAN_FILE, index=False)
     (folder / TABLES_FILE).write_text("\n".join(opening_tables(plan, rows, links=False)))
     opening = opening_tables(plan, rows)
     body = [f"# {plan.title}", "", *header(plan, tracking_uri, runs_read, missing), "",
@@ -147,5 +152,6 @@ def build_report(plan: Plan, tracking_uri: str, out_dir: Path) -> Path:
     path = out_dir / f"{topic}.md"
     path.write_text("\n".join(body).rstrip("\n") + "\n")
     write_scoreboard(out_dir)
+    write_plan_times(out_dir)
     return path
 
