@@ -6,7 +6,7 @@ products and ATen's element-wise ops each take the widest vector path available 
 another), and the paths round differently. Training amplifies the last-bit differences: 8 steps of the Ch.6
 detector's own fit from the same seed gave four different sets of weights under this project's 2-core AMD EPYC's
 widest paths (AVX-512), an AVX2-only CPU's, an SSE4.1-only CPU's and MKL's COMPATIBLE branch
-(``scripts/cpu_kernel_paths.py``, ``reports/ch6_grasp/cpu_kernels.md``). Pinning oneDNN and ATen to AVX2 and MKL to
+(``scripts/cpu_kernel_paths.py``, ``reports/benchmarks/cpu_kernels.md``). Pinning oneDNN and ATen to AVX2 and MKL to
 its AVX2 branch in strict mode (MKL's *conditional numerical reproducibility*) fixes the path: it gives, bit for bit,
 the AVX2-only CPU's weights, and on that machine it cost nothing (0.18 s per detector step pinned, 0.21 s on the
 widest paths). Measured on one machine by capping the libraries; two real machines were not compared.

@@ -22,8 +22,8 @@ Rates are per second of the process's CPU time (``time.process_time``): on a mac
 wall clock counts their time too, the CPU clock does not (wall-clock rates are in their own column). Each row runs
 ``--rounds`` times, the rows interleaved, and the table shows the median.
 
-    .venv/bin/python scripts/bench_rl_throughput.py --code /tmp/before --profile reports/ch3_rl/profile.md \\
-        --out reports/ch3_rl/throughput.md
+    .venv/bin/python scripts/bench_rl_throughput.py --code /tmp/before --profile reports/benchmarks/rl_profile.md \\
+        --out reports/benchmarks/rl_throughput.md
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ call). Rows: this CPU's widest paths (what hrc_lab ran before :mod:`hrc_lab.kern
 an SSE4.1-only CPU would pick (the same libraries capped at that instruction set), MKL's COMPATIBLE branch, and
 hrc_lab's pinned set. Equal weight hashes mean bit-identical weights.
 
-    MUJOCO_GL=egl .venv/bin/python scripts/cpu_kernel_paths.py --steps 8 --out reports/ch6_grasp/cpu_kernels.md
+    MUJOCO_GL=egl .venv/bin/python scripts/cpu_kernel_paths.py --steps 8 --out reports/benchmarks/cpu_kernels.md
 """
 
 from __future__ import annotations

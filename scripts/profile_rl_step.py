@@ -13,7 +13,7 @@ epochs 2 to ``protocol.epochs``, the steady state of a job, up to the last epoch
 trains a shorter guide (its inference costs the same; ``motion.steps`` otherwise, the cached guide when one is
 there). Extra arguments are hrc-lab overrides.
 
-    .venv/bin/python scripts/profile_rl_step.py --epochs 3 --out reports/ch3_rl/profile.md
+    .venv/bin/python scripts/profile_rl_step.py --epochs 3 --out reports/benchmarks/rl_profile.md
 """
 
 from __future__ import annotations
