@@ -82,7 +82,9 @@ def header(plan: Plan, tracking_uri: str, runs: list[pd.DataFrame], missing: lis
             f"`hrc-lab-reproduce {plan.topic}` ({len(plan.studies)} stud{'ies' if len(plan.studies) != 1 else 'y'}")
     line += f"; not run yet: {', '.join(s.key for s in missing)})." if missing else ")."
     lines = [line]
-    if frame is not None:
+    if frame is None:
+        lines.append("Runs: none finished in this store yet.")
+    else:
         commits = frame.get("commit", pd.Series(["unknown"] * len(frame))).fillna("unknown")
         dirty = frame.get("commit_dirty", pd.Series(["unknown"] * len(frame))).fillna("unknown")
         shown = ", ".join(f"`{c[:10]}`" + (" (edited)" if (dirty[commits == c] == "true").any() else "")
