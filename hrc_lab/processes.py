@@ -99,14 +99,15 @@ def machine_identity() -> dict[str, str]:
 
 
 REPOSITORY = Path(__file__).resolve().parents[1]  # the checkout hrc_lab is imported from (an editable install's)
+CODE = ("hrc_lab", "conf", "pyproject.toml")  # what a job's results depend on (not reports/, docs/, tests/)
 
 
 @functools.cache
 def code_identity() -> dict[str, str]:
     """Tags that say which code a job ran: ``commit``, the git commit of the checkout hrc_lab is imported from, and
-    ``commit_dirty``, "true" when a tracked file differed from it when the process started ("unknown" for both
-    outside a git checkout). A report names the commits its runs ran at, so a run of edited code never passes for
-    the commit's."""
+    ``commit_dirty``, "true" when a tracked file of the code a job runs (:data:`CODE`) differed from it when the
+    process started ("unknown" for both outside a git checkout). A report names the commits its runs ran at, so a
+    run of edited code never passes for the commit's; the reports a plan rebuilds in the checkout are not code."""
     def git(*args: str) -> str | None:
         try:
             done = subprocess.run(["git", "-C", str(REPOSITORY), *args], capture_output=True, text=True, timeout=20)
@@ -117,5 +118,5 @@ def code_identity() -> dict[str, str]:
     commit = git("rev-parse", "HEAD")
     if commit is None:
         return {"commit": "unknown", "commit_dirty": "unknown"}
-    status = git("status", "--porcelain", "--untracked-files=no")
+    status = git("status", "--porcelain", "--untracked-files=no", "--", *CODE)
     return {"commit": commit, "commit_dirty": "unknown" if status is None else str(bool(status)).lower()}

@@ -260,3 +260,28 @@ def test_plans_md_gives_each_reports_studies_runs_commit_and_wall_time(tmp_path)
     assert "| all | 2 of 3 | 9 |  | 0.75 |" in text
     assert "| ch9_a | two | 0 | not run yet |" in text and "| ch9_b | three | 3 | 15 |" in text
     assert "CPU: CPU X." in text
+
+
+def test_a_run_is_tagged_edited_only_when_its_code_differs_from_the_commit(tmp_path, monkeypatch):
+    import subprocess
+
+    from hrc_lab import processes
+
+    for path in ("hrc_lab/a.py", "conf/a.yaml", "reports/a.md"):
+        (tmp_path / path).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / path).write_text("x\n")
+    git = ["git", "-C", str(tmp_path), "-c", "user.email=t@t", "-c", "user.name=t"]
+    subprocess.run([*git, "init", "-q"], check=True)
+    subprocess.run([*git, "add", "."], check=True)
+    subprocess.run([*git, "commit", "-qm", "c"], check=True)
+    monkeypatch.setattr(processes, "REPOSITORY", tmp_path)
+
+    def identity():
+        processes.code_identity.cache_clear()
+        return processes.code_identity()
+
+    (tmp_path / "reports/a.md").write_text("a rebuilt report\n")
+    assert identity()["commit_dirty"] == "false"  # a plan's report step rebuilt the checkout's reports
+    (tmp_path / "conf/a.yaml").write_text("y\n")
+    assert identity()["commit_dirty"] == "true"
+    processes.code_identity.cache_clear()
