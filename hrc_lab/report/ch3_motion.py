@@ -89,12 +89,13 @@ def table_3_1(runs: pd.DataFrame) -> Section:
             csv.append(entry)
         rows.append(row)
     text = [
-        f"Per-object success at δr {THRESHOLDS[0]} m of the two-level planner correcting the human's misplacements "
+        f"Per-object success at δr {THRESHOLDS[0]} m, the planner correcting the human's misplacements "
         f"({amount(runs, 'protocol.trials', 'trials')} per case and seed, "
-        f"{amount(runs, 'protocol.demos', 'scripted-expert demonstrations')} per case, at most "
-        f"{amount(runs, 'protocol.max_steps_per_subgoal', 'steps')} per sub-goal): an object succeeds when it ends "
-        f"within δr of its goal without a forbidden contact. {over_seeds(runs, start=True)}. δr 0.06 and steps: "
-        "the opening table; failures and where each pick landed: the CSV." + _oracle_reading(runs),
+        f"{amount(runs, 'protocol.demos', 'demonstrations')} per case, at most "
+        f"{amount(runs, 'protocol.max_steps_per_subgoal', 'steps')} per sub-goal): within δr of its goal, no "
+        f"forbidden contact. {over_seeds(runs, start=True)}. δr 0.06 and steps: the opening table; failures and "
+        "picks: the CSV.",
+        *([_oracle_reading(runs)] if _oracle_reading(runs) else []),
         "",
         markdown_table(pd.DataFrame(rows)) if rows else "(no rows)",
     ]
@@ -109,7 +110,7 @@ def _oracle_reading(runs: pd.DataFrame) -> str:
     if "True" not in setting_values(runs, "protocol.placement_oracle"):
         return ""
     right = spread(runs, "stage2_right")[0]
-    return (" Every released part was set onto its goal before the next stage (`protocol.placement_oracle`): read "
+    return ("Every released part was set onto its goal before the next stage (`protocol.placement_oracle`): read "
             f"the second objects; c(x) picked the expert's part at {fmt(right)} of the second stages.")
 
 
